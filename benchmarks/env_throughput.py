@@ -1,0 +1,116 @@
+"""Env steps per second of AntPush, AntFall, the bare HIRO ant and brax's stock ant.
+
+Each env is jitted and vmapped at several batch sizes; one timed call runs ``--steps`` env
+steps inside ``lax.scan`` with random actions (uniform over the action range). The bare ant is
+the same model, integrator (RK4, 0.02 s x 5), solver settings and contact filtering as the maze
+tasks, on a flat floor with no maze: the ratio maze / bare is the cost of the maze's contacts.
+
+    python -m benchmarks.env_throughput                 # CPU: batches 1, 16, 256
+    python -m benchmarks.env_throughput --batches 1 16 256 4096   # on a GPU
+
+Writes ``benchmarks/results/env_throughput_<platform>_<date>.json`` and prints a table.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import os
+import platform
+import time
+
+import jax
+import jax.numpy as jp
+
+import envs
+from envs import ant_maze, tasks
+
+
+def _brax_ant():
+  from brax import envs as brax_envs
+
+  return brax_envs.get_environment("ant", backend="mjx")
+
+
+def make_env(name: str):
+  if name == "AntFlat":
+    return ant_maze.AntMazeEnv(tasks.FLAT)
+  if name == "brax-ant":
+    return _brax_ant()
+  return envs.make(name)
+
+
+def measure(env, batch: int, steps: int, repeats: int) -> dict:
+  """Compile time and steady-state env steps/s of ``steps`` vmapped steps."""
+  limit = getattr(env, "action_limit", 1.0)
+
+  def rollout(state, key):
+    def body(s, k):
+      a = jax.random.uniform(k, (batch, env.action_size), minval=-limit, maxval=limit)
+      return jax.vmap(env.step)(s, a), None
+
+    return jax.lax.scan(body, state, jax.random.split(key, steps))[0]
+
+  reset = jax.jit(jax.vmap(env.reset))
+  run = jax.jit(rollout)
+  state = reset(jax.random.split(jax.random.PRNGKey(0), batch))
+  t0 = time.perf_counter()
+  state = jax.block_until_ready(run(state, jax.random.PRNGKey(1)))
+  compile_s = time.perf_counter() - t0
+  best = float("inf")
+  for r in range(repeats):
+    t0 = time.perf_counter()
+    state = jax.block_until_ready(run(state, jax.random.PRNGKey(2 + r)))
+    best = min(best, time.perf_counter() - t0)
+  return {"batch": batch, "steps_per_s": batch * steps / best, "compile_plus_first_s": compile_s,
+          "timed_steps": steps}
+
+
+def machine() -> dict:
+  dev = jax.devices()[0]
+  return {"platform": dev.platform, "device": str(dev.device_kind), "cpu_count": os.cpu_count(),
+          "processor": platform.processor() or platform.machine(),
+          "python": platform.python_version(), "jax": jax.__version__}
+
+
+def main(argv=None):
+  p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+  p.add_argument("--envs", nargs="+", default=["AntFlat", "AntPush", "AntFall", "brax-ant"])
+  p.add_argument("--batches", nargs="+", type=int, default=None)
+  p.add_argument("--steps", type=int, default=20, help="env steps per timed call")
+  p.add_argument("--repeats", type=int, default=3)
+  p.add_argument("--out", default=os.path.join(os.path.dirname(__file__), "results"))
+  args = p.parse_args(argv)
+  on_gpu = jax.default_backend() == "gpu"
+  batches = args.batches or ([1, 16, 256, 4096] if on_gpu else [1, 16, 256])
+  rows = []
+  for name in args.envs:
+    env = make_env(name)
+    for b in batches:
+      r = {"env": name, **measure(env, b, args.steps, args.repeats)}
+      rows.append(r)
+      print(f"{name:9s} batch {b:6d}: {r['steps_per_s']:10.1f} steps/s "
+            f"(compile+first {r['compile_plus_first_s']:.1f} s)", flush=True)
+  ratios = {}
+  by = {(r["env"], r["batch"]): r["steps_per_s"] for r in rows}
+  for name in ("AntPush", "AntFall"):
+    for b in batches:
+      if (name, b) in by and ("AntFlat", b) in by:
+        ratios[f"{name}/AntFlat@{b}"] = by[(name, b)] / by[("AntFlat", b)]
+  for k, v in ratios.items():
+    print(f"{k}: {v:.2f}")
+  date = datetime.date.today().isoformat()
+  info = machine()
+  result = {"benchmark": "env_throughput", "date": date, "machine": info,
+            "command": "python -m benchmarks.env_throughput " + " ".join(argv or []),
+            "results": rows, "ratios_to_bare_ant": ratios}
+  os.makedirs(args.out, exist_ok=True)
+  path = os.path.join(args.out, f"env_throughput_{info['platform']}_{date}.json")
+  with open(path, "w") as f:
+    json.dump(result, f, indent=2)
+  print("wrote", path)
+
+
+if __name__ == "__main__":
+  main()

@@ -1,0 +1,54 @@
+"""Maze environments: HIRO's Ant Push / Fall / Maze on MJX, and their pure-JAX point twins.
+
+    import envs
+    env = envs.make("AntPush", episode_length=500)
+    state = jax.jit(env.reset)(jax.random.PRNGKey(0))
+    state = jax.jit(env.step)(state, jp.zeros(env.action_size))
+    state.metrics["success"], env.target, env.success_radius, env.mj_model
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import io
+
+# mujoco.mjx prints a line about its optional warp backend on import; keep it quiet.
+with contextlib.redirect_stdout(io.StringIO()):
+  from mujoco import mjx as _mjx  # noqa: F401
+
+from envs import tasks
+from envs.ant_maze import AntConfig, AntMazeEnv
+from envs.base import EnvConfig, MazeState
+from envs.point_maze import PointConfig, PointMazeEnv
+
+_ROBOTS = {"Ant": (AntMazeEnv, AntConfig), "Point": (PointMazeEnv, PointConfig)}
+NAMES = tuple(f"{robot}{task}" for robot in _ROBOTS for task in tasks.TASKS)
+
+
+def valid_overrides(name: str) -> tuple[str, ...]:
+  """The keyword overrides ``make`` accepts for an env name."""
+  _, config_cls = _ROBOTS[_split(name)[0]]
+  return tuple(f.name for f in dataclasses.fields(config_cls))
+
+
+def _split(name: str) -> tuple[str, str]:
+  for robot in _ROBOTS:
+    if name.startswith(robot) and name[len(robot):] in tasks.TASKS:
+      return robot, name[len(robot):]
+  raise ValueError(f"unknown env {name!r}; valid names: {', '.join(NAMES)}")
+
+
+def make(name: str, **overrides):
+  """Build an env by name (``envs.NAMES``) with config overrides (``valid_overrides``)."""
+  robot, task = _split(name)
+  env_cls, config_cls = _ROBOTS[robot]
+  valid = valid_overrides(name)
+  unknown = sorted(set(overrides) - set(valid))
+  if unknown:
+    raise ValueError(f"unknown override(s) {unknown} for {name}; valid: {', '.join(valid)}")
+  return env_cls(tasks.TASKS[task], config_cls(**overrides))
+
+
+__all__ = ["make", "NAMES", "valid_overrides", "AntMazeEnv", "PointMazeEnv", "AntConfig",
+           "PointConfig", "EnvConfig", "MazeState", "tasks"]

@@ -1,0 +1,111 @@
+"""AntPush, AntFall and AntMaze: HIRO's ant in a maze, as a brax ``PipelineEnv`` on MJX.
+
+Observation (30): ant ``qpos[:15]`` (xyz, quaternion, 8 joints), ``qvel[:14]`` and ``t * 0.001``.
+Blocks are simulated but not observed. Actions are the 8 motor torques, clipped to +-30.
+One env step is 5 physics steps of 0.02 s (RK4), i.e. 0.1 s.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import warnings
+
+import jax
+import jax.numpy as jp
+import mujoco
+from brax.envs import base as brax_base
+from brax.io import mjcf
+
+from envs import ant, base, maze, tasks
+
+N_FRAMES = 5
+OBS_SIZE = 30
+_ANT_NQ, _ANT_NV = 15, 14
+
+
+@dataclasses.dataclass(frozen=True)
+class AntConfig(base.EnvConfig):
+  """Ant maze options. ``optimised=False`` builds HIRO's model literally (slow in MJX)."""
+
+  optimised: bool = True
+  solver_iterations: int = ant.FAST_SOLVER.iterations
+  solver_ls_iterations: int = ant.FAST_SOLVER.ls_iterations
+  max_contact_points: int = ant.FAST_SOLVER.max_contact_points
+  max_geom_pairs: int = ant.FAST_SOLVER.max_geom_pairs
+
+  def solver(self) -> ant.SolverSettings:
+    if not self.optimised:
+      return ant.HIRO_SOLVER
+    return ant.SolverSettings(self.solver_iterations, self.solver_ls_iterations,
+                              self.max_contact_points, self.max_geom_pairs)
+
+
+class AntMazeEnv(base.MazeTask, brax_base.PipelineEnv):
+  """HIRO's ant in one of the maze layouts (``envs.tasks``)."""
+
+  def __init__(self, task: tasks.Task, config: AntConfig = AntConfig()):
+    self.config = config
+    self.task = task
+    self.layout = task.layout(8.0)
+    self.mj_model = ant.load(self.layout, config.optimised, config.solver())
+    self.target = jp.asarray(task.target, jp.float32)
+    self.success_radius = task.success_radius
+    with warnings.catch_warnings():  # brax's notice that its own pipelines are unmaintained
+      warnings.simplefilter("ignore", UserWarning)
+      sys = mjcf.load_model(self.mj_model)
+    super().__init__(sys=sys, backend="mjx", n_frames=N_FRAMES)
+    self._qpos0 = jp.asarray(self.mj_model.qpos0, jp.float32)
+    self._nv = self.mj_model.nv
+
+  @property
+  def observation_size(self) -> int:
+    return OBS_SIZE
+
+  @property
+  def action_size(self) -> int:
+    return ant.ACTION_SIZE
+
+  @property
+  def action_limit(self) -> float:
+    return ant.CTRL_LIMIT
+
+  def reset(self, rng: jax.Array) -> base.MazeState:
+    """HIRO reset: qpos0 + U(-0.1, 0.1) and qvel 0.1 N(0, 1) on the ant; blocks exact."""
+    k1, k2 = jax.random.split(rng)
+    s = self.config.reset_noise_scale
+    qpos = self._qpos0.at[:_ANT_NQ].add(
+        jax.random.uniform(k1, (_ANT_NQ,), minval=-s, maxval=s))
+    qvel = jp.zeros(self._nv).at[:_ANT_NV].set(s * jax.random.normal(k2, (_ANT_NV,)))
+    ps = self.pipeline_init(qpos, qvel)
+    return self._state(ps, jp.zeros((), jp.int32))
+
+  def step(self, state: base.MazeState, action: jax.Array) -> base.MazeState:
+    action = jp.clip(action, -ant.CTRL_LIMIT, ant.CTRL_LIMIT)
+    ps = self.pipeline_step(state.pipeline_state, action)
+    return self._state(ps, state.steps + 1)
+
+  def _state(self, ps, steps) -> base.MazeState:
+    body = jp.concatenate([ps.qpos[:_ANT_NQ], ps.qvel[:_ANT_NV]])
+    return self.make_state(ps, body, ps.qpos[:3], steps)
+
+  def qpos(self, state: base.MazeState) -> jax.Array:
+    """Joint positions of ``mj_model`` for rendering."""
+    return state.pipeline_state.qpos
+
+  def block_positions(self, state: base.MazeState) -> jax.Array:
+    """(n_blocks, 3) world centres of the movable blocks."""
+    return block_centres(self.layout, self.mj_model, state.pipeline_state.qpos)
+
+
+def block_centres(layout: maze.MazeLayout, model, qpos) -> jax.Array:
+  """World centres of the blocks from the model's slide joints."""
+  out = []
+  for blk in layout.blocks():
+    c = jp.asarray(blk.box.center, jp.float32)
+    for k, ax in enumerate("xyz"):
+      if ax in blk.axes:
+        i, j = blk.cell
+        jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, f"block_{ax}_{i}_{j}")
+        c = c.at[k].add(qpos[model.jnt_qposadr[jid]])
+    out.append(c)
+  return jp.stack(out) if out else jp.zeros((0, 3))

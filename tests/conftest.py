@@ -1,0 +1,50 @@
+"""Shared test setup: persistent XLA compilation cache and session-wide compiled envs.
+
+XLA compile time dominates this suite on a CPU (an MJX ant maze program takes tens of
+seconds), so every program is compiled once per session (the fixtures below) and the
+compiled executables are cached on disk across sessions (``.jax_cache/`` or
+``$JAX_COMPILATION_CACHE_DIR``).
+"""
+
+import os
+
+os.environ.setdefault("XLA_FLAGS", "--xla_force_host_platform_device_count=1")
+
+import jax  # noqa: E402
+import pytest  # noqa: E402
+
+_CACHE = os.environ.get(
+    "JAX_COMPILATION_CACHE_DIR",
+    os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), ".jax_cache"))
+jax.config.update("jax_compilation_cache_dir", _CACHE)
+jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
+jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+
+import envs  # noqa: E402
+
+SMOKE_EPISODE = 3  # episode length of the compiled smoke envs: truncation shows at step 3
+SMOKE_BATCH = 2
+
+
+class CompiledEnv:
+  """An env with its vmapped reset and step jitted once."""
+
+  def __init__(self, name: str):
+    self.env = envs.make(name, episode_length=SMOKE_EPISODE)
+    self.reset = jax.jit(jax.vmap(self.env.reset))
+    self.step = jax.jit(jax.vmap(self.env.step))
+
+
+_compiled: dict[str, CompiledEnv] = {}
+
+
+@pytest.fixture(scope="session")
+def compiled_env():
+  """compiled_env(name) -> CompiledEnv, built once per session."""
+
+  def get(name: str) -> CompiledEnv:
+    if name not in _compiled:
+      _compiled[name] = CompiledEnv(name)
+    return _compiled[name]
+
+  return get
