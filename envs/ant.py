@@ -32,7 +32,6 @@ from __future__ import annotations
 import dataclasses
 
 import mujoco
-import numpy as np
 
 from envs import maze
 
@@ -157,7 +156,3 @@ def colliding_geoms(model: mujoco.MjModel) -> list[str]:
     if root == torso and (model.geom_contype[g] or model.geom_conaffinity[g]):
       out.append(mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g))
   return out
-
-
-def init_qpos(model: mujoco.MjModel) -> np.ndarray:
-  return np.array(model.qpos0)

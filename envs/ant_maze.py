@@ -33,6 +33,16 @@ class AntConfig(base.EnvConfig):
   max_contact_points: int = ant.FAST_SOLVER.max_contact_points
   max_geom_pairs: int = ant.FAST_SOLVER.max_geom_pairs
 
+  def __post_init__(self):
+    super().__post_init__()
+    for name in ("solver_iterations", "solver_ls_iterations"):
+      if getattr(self, name) < 1:
+        raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
+    for name in ("max_contact_points", "max_geom_pairs"):
+      v = getattr(self, name)
+      if v != -1 and v < 1:
+        raise ValueError(f"{name} must be -1 (no cap) or >= 1, got {v}")
+
   def solver(self) -> ant.SolverSettings:
     if not self.optimised:
       return ant.HIRO_SOLVER

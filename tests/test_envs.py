@@ -35,6 +35,10 @@ def test_unknown_override_lists_valid_ones():
     envs.make("PointPush", optimised=False)  # an ant-only option
   with pytest.raises(ValueError, match="episode_length must be positive"):
     envs.make("PointPush", episode_length=-5)
+  with pytest.raises(ValueError, match="solver_iterations"):
+    envs.make("AntFall", solver_iterations=0)
+  with pytest.raises(ValueError, match="max_geom_pairs"):
+    envs.make("AntFall", max_geom_pairs=-3)
 
 
 @pytest.mark.parametrize("name", envs.NAMES)
