@@ -1,0 +1,59 @@
+"""Network factories: each returns a frozen ``Network`` of pure ``init`` / ``apply`` functions.
+
+Following brax's ``networks.py``: the flax module stays inside the factory; callers see
+``params = net.init(key)`` and ``net.apply(params, *inputs)`` (inputs are concatenated on the
+last axis, so ``apply(params, obs, goal)`` is a goal-conditioned network).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Callable, Sequence
+
+import flax.linen as nn
+import jax
+import jax.numpy as jp
+
+Activation = Callable[[jax.Array], jax.Array]
+
+
+@dataclasses.dataclass(frozen=True)
+class Network:
+  """A pure network: ``init(key) -> params``, ``apply(params, *inputs) -> output``."""
+
+  init: Callable[[jax.Array], dict]
+  apply: Callable[..., jax.Array]
+
+
+class MLP(nn.Module):
+  """Dense layers with an activation between them and an optional one at the end."""
+
+  sizes: Sequence[int]
+  activation: Activation = nn.relu
+  final_activation: Activation | None = None
+
+  @nn.compact
+  def __call__(self, x: jax.Array) -> jax.Array:
+    for i, size in enumerate(self.sizes):
+      x = nn.Dense(size, kernel_init=nn.initializers.lecun_uniform(),
+                   name=f"dense_{i}")(x)
+      if i < len(self.sizes) - 1:
+        x = self.activation(x)
+    if self.final_activation is not None:
+      x = self.final_activation(x)
+    return x
+
+
+def make_mlp(input_size: int, hidden: Sequence[int], output_size: int,
+             activation: Activation = nn.relu,
+             final_activation: Activation | None = None) -> Network:
+  """An MLP over the concatenation of its inputs (total width ``input_size``)."""
+  module = MLP(tuple(hidden) + (output_size,), activation, final_activation)
+
+  def init(key):
+    return module.init(key, jp.zeros((1, input_size)))
+
+  def apply(params, *inputs):
+    return module.apply(params, jp.concatenate(inputs, axis=-1))
+
+  return Network(init, apply)

@@ -1,0 +1,197 @@
+"""TD3 (Fujimoto et al. 2018), goal- or context-conditioned, as both levels of HIRO use it.
+
+    for each update (batch of (s, g, a, r, s', g', d) from the replay buffer):
+      a' = clip(pi_targ(s', g') + clip(N(0, sigma), -c, c), -scale, scale)   (target smoothing)
+      y  = r + gamma * (1 - d) * min(Q1_targ, Q2_targ)(s', g', a')
+      critic: minimise (Q1(s, g, a) - y)^2 + (Q2(s, g, a) - y)^2
+      every ``policy_delay`` updates:
+        actor: maximise Q1(s, g, pi(s, g))
+        targets: theta_targ <- tau * theta + (1 - tau) * theta_targ      (Polyak)
+
+The context ``g`` is the Low level's goal or the Middle level's target position; the networks
+take ``concat(s, g[, a])``. The delayed actor step is gated by an argument that the trainer
+derives from its unbatched step counter, so under ``vmap`` over seeds it stays a real
+``lax.cond`` branch (SPEC section 6). In ours the Middle TD3 uses no target smoothing
+(``target_smoothing=False``); HIRO keeps it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Callable, Sequence
+
+import flax.linen as nn
+import jax
+import jax.numpy as jp
+import optax
+from flax import struct
+
+from nonmono_jax import networks
+
+
+@dataclasses.dataclass(frozen=True)
+class TD3Config:
+  """TD3 hyperparameters; defaults are SPEC section 2 (both levels)."""
+
+  hidden: Sequence[int] = (300, 300)
+  lr_actor: float = 1e-4
+  lr_critic: float = 1e-3
+  gamma: float = 0.99
+  tau: float = 5e-3
+  batch_size: int = 100
+  policy_noise: float = 0.2  # target smoothing noise std (absolute, as the HIRO port)
+  noise_clip: float = 0.5
+  policy_delay: int = 2
+  expl_noise: float = 1.0  # behaviour noise std before clipping (Low: N(0, 1) on torques)
+  buffer_size: int = 200_000
+  target_smoothing: bool = True
+
+  def __post_init__(self):
+    for name in ("lr_actor", "lr_critic", "tau", "gamma"):
+      v = getattr(self, name)
+      if not 0 < v <= 1:
+        raise ValueError(f"{name} must be in (0, 1], got {v}")
+    for name in ("batch_size", "policy_delay", "buffer_size"):
+      if getattr(self, name) < 1:
+        raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
+    for name in ("policy_noise", "noise_clip", "expl_noise"):
+      if getattr(self, name) < 0:
+        raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
+    if not self.hidden or any(h < 1 for h in self.hidden):
+      raise ValueError(f"hidden must be positive layer sizes, got {self.hidden}")
+
+
+@struct.dataclass
+class Transition:
+  """One transition (or a batch of them): obs, context, action, reward, next, done."""
+
+  obs: jax.Array
+  context: jax.Array
+  action: jax.Array
+  reward: jax.Array
+  next_obs: jax.Array
+  next_context: jax.Array
+  done: jax.Array  # 1.0 where the bootstrap is cut
+
+
+@struct.dataclass
+class TD3Params:
+  actor: dict
+  critic: dict  # twin critics, stacked on a leading axis of 2
+  target_actor: dict
+  target_critic: dict
+
+
+@struct.dataclass
+class TD3State:
+  params: TD3Params
+  actor_opt: optax.OptState
+  critic_opt: optax.OptState
+
+
+def td_target(reward, done, q1_next, q2_next, gamma):
+  """Clipped double-Q target: r + gamma (1 - d) min(Q1', Q2')."""
+  return reward + gamma * (1.0 - done) * jp.minimum(q1_next, q2_next)
+
+
+def polyak(target, online, tau):
+  """theta_targ <- tau theta + (1 - tau) theta_targ."""
+  return jax.tree.map(lambda t, o: (1.0 - tau) * t + tau * o, target, online)
+
+
+@dataclasses.dataclass(frozen=True)
+class TD3:
+  """The pure functions of one TD3 learner (built by ``make_td3``)."""
+
+  config: TD3Config
+  action_scale: jax.Array
+  init: Callable[[jax.Array], TD3State]
+  act: Callable[..., jax.Array]
+  explore: Callable[..., jax.Array]
+  q_values: Callable[..., jax.Array]
+  critic_loss: Callable[..., tuple]
+  actor_loss: Callable[..., tuple]
+  update: Callable[..., tuple]
+
+
+def make_td3(obs_size: int, context_size: int, action_size: int, action_scale,
+             config: TD3Config = TD3Config()) -> TD3:
+  """Build TD3 for observations, a context (goal) and actions in [-scale, scale]."""
+  scale = jp.broadcast_to(jp.asarray(action_scale, jp.float32), (action_size,))
+  actor_net = networks.make_mlp(obs_size + context_size, config.hidden, action_size,
+                                activation=nn.relu, final_activation=jp.tanh)
+  critic_net = networks.make_mlp(obs_size + context_size + action_size, config.hidden, 1,
+                                 activation=nn.relu)
+  actor_opt = optax.adam(config.lr_actor)
+  critic_opt = optax.adam(config.lr_critic)
+
+  def pi(actor_params, obs, context):
+    return scale * actor_net.apply(actor_params, obs, context)
+
+  def q_values(critic_params, obs, context, action):
+    """(2, ...) twin Q-values."""
+    return jax.vmap(lambda p: critic_net.apply(p, obs, context, action)[..., 0])(critic_params)
+
+  def init(key):
+    ka, kc = jax.random.split(key)
+    actor = actor_net.init(ka)
+    critic = jax.vmap(critic_net.init)(jax.random.split(kc, 2))
+    params = TD3Params(actor=actor, critic=critic, target_actor=actor, target_critic=critic)
+    return TD3State(params=params, actor_opt=actor_opt.init(actor),
+                    critic_opt=critic_opt.init(critic))
+
+  def act(params: TD3Params, obs, context):
+    return pi(params.actor, obs, context)
+
+  def explore(params: TD3Params, obs, context, key, noise_std=config.expl_noise):
+    a = pi(params.actor, obs, context)
+    return jp.clip(a + noise_std * jax.random.normal(key, a.shape), -scale, scale)
+
+  def critic_loss(critic_params, params: TD3Params, batch: Transition, key):
+    a_next = pi(params.target_actor, batch.next_obs, batch.next_context)
+    if config.target_smoothing:
+      noise = jp.clip(config.policy_noise * jax.random.normal(key, a_next.shape),
+                      -config.noise_clip, config.noise_clip)
+      a_next = jp.clip(a_next + noise, -scale, scale)
+    q_next = q_values(params.target_critic, batch.next_obs, batch.next_context, a_next)
+    y = jax.lax.stop_gradient(
+        td_target(batch.reward, batch.done, q_next[0], q_next[1], config.gamma))
+    q = q_values(critic_params, batch.obs, batch.context, batch.action)
+    loss = jp.mean((q[0] - y) ** 2) + jp.mean((q[1] - y) ** 2)
+    return loss, {"critic_loss": loss, "q": jp.mean(q[0]), "target_q": jp.mean(y)}
+
+  def actor_loss(actor_params, params: TD3Params, batch: Transition):
+    a = pi(actor_params, batch.obs, batch.context)
+    q1 = q_values(params.critic, batch.obs, batch.context, a)[0]
+    loss = -jp.mean(q1)
+    return loss, {"actor_loss": loss}
+
+  def update(state: TD3State, batch: Transition, key, update_actor):
+    """One critic step; the actor step and Polyak targets when ``update_actor``.
+
+    ``update_actor`` should be unbatched (from the trainer's step counter) so that under
+    ``vmap`` over seeds the ``lax.cond`` stays a branch rather than a select.
+    """
+    p = state.params
+    (_, cm), grads = jax.value_and_grad(critic_loss, has_aux=True)(p.critic, p, batch, key)
+    updates, critic_opt_state = critic_opt.update(grads, state.critic_opt, p.critic)
+    p = p.replace(critic=optax.apply_updates(p.critic, updates))
+    state = state.replace(params=p, critic_opt=critic_opt_state)
+
+    def actor_step(state):
+      p = state.params
+      (loss, _), grads = jax.value_and_grad(actor_loss, has_aux=True)(p.actor, p, batch)
+      updates, opt = actor_opt.update(grads, state.actor_opt, p.actor)
+      actor = optax.apply_updates(p.actor, updates)
+      p = p.replace(actor=actor, target_actor=polyak(p.target_actor, actor, config.tau),
+                    target_critic=polyak(p.target_critic, p.critic, config.tau))
+      return state.replace(params=p, actor_opt=opt), loss
+
+    def skip(state):
+      return state, jp.zeros((), jp.float32)
+
+    state, a_loss = jax.lax.cond(update_actor, actor_step, skip, state)
+    return state, {**cm, "actor_loss": a_loss}
+
+  return TD3(config=config, action_scale=scale, init=init, act=act, explore=explore,
+             q_values=q_values, critic_loss=critic_loss, actor_loss=actor_loss, update=update)
