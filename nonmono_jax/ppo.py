@@ -1,0 +1,269 @@
+"""PPO for the Middle level (Gaussian goals) and the Top level (3 modes), as pure functions.
+
+Follows the PyTorch port the paper builds on (nikhilbarhate99/PPO-PyTorch, ``PPO.update``).
+One update, over a rollout of N transitions (N = 3 at the Middle, 8 at the Top):
+
+    R_t = r_t + gamma * R_{t+1} * (1 - d_t),   R_N = r_N      # Monte Carlo, reset at done
+    R   = (R - mean(R)) / (std(R) + 1e-7)                     # over the rollout
+    repeat K times:                                           # full batch, one Adam step each
+      rho_t = exp(log pi_theta(a_t | s_t) - log pi_old(a_t | s_t))
+      A_t   = R_t - sg(V_phi(s_t))
+      l_t   = -min(rho_t A_t, clip(rho_t, 1 - eps, 1 + eps) A_t)
+              + c_v (V_phi(s_t) - R_t)^2 - c_e H[pi_theta(. | s_t)]
+      theta, phi <- Adam(grad mean_t(w_t l_t))                # lr_actor on theta, lr_critic on phi
+
+``w_t`` is 1 except at the Top, where Algorithm 1's Train_T sets ``l + S_E l`` in the
+exploration modes and ``l - S_E l`` in the TD3 mode (``top_loss_weights``). Note that Adam is
+invariant to a uniform rescaling of the loss: the weights change an update only where they
+differ between samples.
+
+Kept from the port: full-batch epochs (no minibatches), normalised Monte Carlo returns that
+do not bootstrap past the rollout's end, no GAE, no advantage normalisation, no gradient
+clipping, the advantage against the current critic without gradient, torch's unbiased std
+(``ddof=1``) in the normalisation, tanh MLPs, a state-independent Gaussian std decayed by the
+caller (``gaussian_std``) and the Adam parameter groups. Changed: the Gaussian mean is
+``action_scale * tanh(mlp)`` and its std is ``std * action_scale`` per dimension (the port's
+actions live in [-1, 1]; scaling both keeps its std schedule meaningful for goals in action
+units); networks use ``networks.make_mlp``'s initialisation, not torch's.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Callable, Sequence
+
+import flax.linen as nn
+import jax
+import jax.numpy as jp
+import optax
+from flax import struct
+
+from nonmono_jax import networks
+
+_RETURN_EPS = 1e-7  # the port's normaliser epsilon
+_LOG_2PI_E = math.log(2.0 * math.pi * math.e)
+
+
+@dataclasses.dataclass(frozen=True)
+class PPOConfig:
+  """PPO hyper-parameters; the defaults are the paper's (and the port's) numbers."""
+
+  hidden: Sequence[int] = (300, 300)
+  lr_actor: float = 3e-4
+  lr_critic: float = 1e-3
+  gamma: float = 0.99
+  clip: float = 0.2
+  k_epochs: int = 10
+  entropy_coef: float = 0.01
+  value_coef: float = 0.5
+  discrete: bool = False
+  std_init: float = 0.6
+  std_decay: float = 0.05
+  std_decay_every: int = 250_000
+  std_min: float = 0.1
+
+  def __post_init__(self):
+    object.__setattr__(self, "hidden", tuple(int(h) for h in self.hidden))
+    if not self.hidden or min(self.hidden) <= 0:
+      raise ValueError(f"hidden must be non-empty positive sizes, got {self.hidden}")
+    if self.lr_actor <= 0:
+      raise ValueError(f"lr_actor must be positive, got {self.lr_actor}")
+    if self.lr_critic <= 0:
+      raise ValueError(f"lr_critic must be positive, got {self.lr_critic}")
+    if not 0 < self.gamma <= 1:
+      raise ValueError(f"gamma must be in (0, 1], got {self.gamma}")
+    if not 0 < self.clip < 1:
+      raise ValueError(f"clip must be in (0, 1), got {self.clip}")
+    if self.k_epochs < 1:
+      raise ValueError(f"k_epochs must be >= 1, got {self.k_epochs}")
+    if self.entropy_coef < 0:
+      raise ValueError(f"entropy_coef must be >= 0, got {self.entropy_coef}")
+    if self.value_coef < 0:
+      raise ValueError(f"value_coef must be >= 0, got {self.value_coef}")
+    if self.std_init <= 0:
+      raise ValueError(f"std_init must be positive, got {self.std_init}")
+    if self.std_min <= 0 or self.std_min > self.std_init:
+      raise ValueError(f"std_min must be in (0, std_init], got {self.std_min}")
+    if self.std_decay < 0:
+      raise ValueError(f"std_decay must be >= 0, got {self.std_decay}")
+    if self.std_decay_every < 1:
+      raise ValueError(f"std_decay_every must be >= 1, got {self.std_decay_every}")
+
+
+@struct.dataclass
+class PPOState:
+  """Learner state: ``params = {'actor': ..., 'critic': ...}`` and Adam's state."""
+
+  params: dict
+  opt_state: optax.OptState
+
+
+@struct.dataclass
+class Rollout:
+  """N transitions in time order; ``action`` is (N, A) float (Gaussian) or (N,) int (discrete)."""
+
+  obs: jax.Array  # (N, obs_size)
+  action: jax.Array
+  log_prob: jax.Array  # (N,) log pi_old(a | s), from ``act`` at collection time
+  reward: jax.Array  # (N,)
+  done: jax.Array  # (N,) 1 where the episode ended after this transition
+
+
+@dataclasses.dataclass(frozen=True)
+class PPO:
+  """One PPO learner's pure functions (``make_ppo``); the discrete head ignores ``std``."""
+
+  config: PPOConfig
+  obs_size: int
+  action_size: int
+  action_scale: jax.Array
+  init: Callable[[jax.Array], PPOState]
+  act: Callable[..., tuple[jax.Array, jax.Array]]  # (params, obs, key, std) -> (a, logp)
+  mode: Callable[..., jax.Array]  # (params, obs) -> greedy action
+  log_prob: Callable[..., jax.Array]  # (params, obs, action, std) -> logp
+  entropy: Callable[..., jax.Array]  # (params, obs, std) -> H
+  value: Callable[..., jax.Array]  # (params, obs) -> V
+  per_sample_loss: Callable[..., tuple[jax.Array, dict]]  # (params, batch, std)
+  loss: Callable[..., tuple[jax.Array, dict]]  # (params, batch, std, loss_weights)
+  update: Callable[..., tuple[PPOState, dict]]  # (state, batch, std, loss_weights=None)
+
+
+def gaussian_std(step: jax.Array, config: PPOConfig) -> jax.Array:
+  """The port's std schedule: ``std_init - std_decay`` per ``std_decay_every`` steps, floored."""
+  n = jp.floor_divide(jp.asarray(step), config.std_decay_every).astype(jp.float32)
+  std = jp.round(config.std_init - config.std_decay * n, 4)
+  return jp.maximum(std, config.std_min).astype(jp.float32)
+
+
+def monte_carlo_returns(rewards: jax.Array, dones: jax.Array, gamma: float,
+                        normalize: bool = True) -> jax.Array:
+  """Discounted returns, reset at dones, not bootstrapped at the end; normalised by default."""
+  rewards = jp.asarray(rewards, jp.float32)
+  dones = jp.asarray(dones).astype(jp.float32)
+
+  def step(g, rd):
+    r, d = rd
+    g = r + gamma * g * (1.0 - d)
+    return g, g
+
+  _, returns = jax.lax.scan(step, jp.zeros((), jp.float32), (rewards, dones), reverse=True)
+  if normalize:
+    returns = (returns - returns.mean()) / (returns.std(ddof=1) + _RETURN_EPS)
+  return returns
+
+
+def top_loss_weights(modes: jax.Array, s_e: jax.Array, td3_mode: int = 0) -> jax.Array:
+  """Train_T's per-sample weights: ``1 - S_E`` in the TD3 mode, ``1 + S_E`` in the others."""
+  return jp.where(jp.asarray(modes) == td3_mode, 1.0 - s_e, 1.0 + s_e)
+
+
+def make_ppo(obs_size: int, action_size: int, config: PPOConfig = PPOConfig(),
+             action_scale: jax.Array | None = None) -> PPO:
+  """Builds the PPO functions for a Gaussian (default) or categorical (``config.discrete``) head."""
+  discrete = config.discrete
+  if discrete and action_scale is not None:
+    raise ValueError("action_scale applies to the Gaussian head only")
+  if action_scale is None:
+    action_scale = jp.ones((action_size,), jp.float32)
+  action_scale = jp.broadcast_to(jp.asarray(action_scale, jp.float32), (action_size,))
+  log_scale_sum = jp.sum(jp.log(action_scale))
+
+  actor = networks.make_mlp(obs_size, config.hidden, action_size, activation=nn.tanh,
+                            final_activation=None if discrete else nn.tanh)
+  critic = networks.make_mlp(obs_size, config.hidden, 1, activation=nn.tanh)
+  optimizer = optax.multi_transform(
+      {"actor": optax.adam(config.lr_actor), "critic": optax.adam(config.lr_critic)},
+      lambda p: {k: jax.tree.map(lambda _: k, v) for k, v in p.items()})
+
+  def init(key):
+    k_actor, k_critic = jax.random.split(key)
+    params = {"actor": actor.init(k_actor), "critic": critic.init(k_critic)}
+    return PPOState(params=params, opt_state=optimizer.init(params))
+
+  def _head(params, obs):
+    """Logits (discrete) or the scaled mean (Gaussian)."""
+    out = actor.apply(params["actor"], obs)
+    return out if discrete else out * action_scale
+
+  def _gaussian_log_prob(mean, action, std):
+    sigma = std * action_scale
+    z = (action - mean) / sigma
+    return jp.sum(-0.5 * z**2 - jp.log(sigma), axis=-1) - 0.5 * action_size * math.log(2 * jp.pi)
+
+  def log_prob(params, obs, action, std):
+    head = _head(params, obs)
+    if discrete:
+      logp = jax.nn.log_softmax(head)
+      return jp.take_along_axis(logp, action[..., None].astype(jp.int32), axis=-1)[..., 0]
+    return _gaussian_log_prob(head, action, std)
+
+  def entropy(params, obs, std):
+    head = _head(params, obs)
+    if discrete:
+      logp = jax.nn.log_softmax(head)
+      return -jp.sum(jp.exp(logp) * logp, axis=-1)
+    h = 0.5 * action_size * _LOG_2PI_E + action_size * jp.log(std) + log_scale_sum
+    return jp.broadcast_to(h, head.shape[:-1])
+
+  def act(params, obs, key, std):
+    head = _head(params, obs)
+    if discrete:
+      action = jax.random.categorical(key, head, axis=-1)
+      logp = jp.take_along_axis(jax.nn.log_softmax(head), action[..., None], axis=-1)[..., 0]
+      return action, logp
+    action = head + std * action_scale * jax.random.normal(key, head.shape)
+    return action, _gaussian_log_prob(head, action, std)
+
+  def mode(params, obs):
+    head = _head(params, obs)
+    return jp.argmax(head, axis=-1) if discrete else head
+
+  def value(params, obs):
+    return critic.apply(params["critic"], obs)[..., 0]
+
+  def per_sample_loss(params, batch: Rollout, std):
+    returns = monte_carlo_returns(batch.reward, batch.done, config.gamma)
+    logp = log_prob(params, batch.obs, batch.action, std)
+    v = value(params, batch.obs)
+    ent = entropy(params, batch.obs, std)
+    adv = returns - jax.lax.stop_gradient(v)
+    log_ratio = logp - batch.log_prob
+    ratio = jp.exp(log_ratio)
+    surrogate = jp.minimum(ratio * adv, jp.clip(ratio, 1 - config.clip, 1 + config.clip) * adv)
+    value_err = (v - returns) ** 2
+    loss = -surrogate + config.value_coef * value_err - config.entropy_coef * ent
+    metrics = {
+        "policy_loss": -surrogate.mean(),
+        "value_loss": value_err.mean(),
+        "entropy": ent.mean(),
+        "approx_kl": jax.lax.stop_gradient(((ratio - 1) - log_ratio).mean()),
+        "clip_fraction": (jp.abs(ratio - 1) > config.clip).astype(jp.float32).mean(),
+    }
+    return loss, metrics
+
+  def loss(params, batch: Rollout, std, loss_weights):
+    per_sample, metrics = per_sample_loss(params, batch, std)
+    total = jp.mean(loss_weights * per_sample)
+    return total, {"loss": total, **metrics}
+
+  def update(state: PPOState, batch: Rollout, std, loss_weights=None):
+    if loss_weights is None:
+      loss_weights = jp.ones(batch.reward.shape, jp.float32)
+    grad_fn = jax.grad(loss, has_aux=True)
+
+    def epoch(carry, _):
+      params, opt_state = carry
+      grads, metrics = grad_fn(params, batch, std, loss_weights)
+      updates, opt_state = optimizer.update(grads, opt_state, params)
+      return (optax.apply_updates(params, updates), opt_state), metrics
+
+    (params, opt_state), metrics = jax.lax.scan(
+        epoch, (state.params, state.opt_state), None, length=config.k_epochs)
+    metrics = jax.tree.map(jp.mean, metrics)  # averaged over the K epochs
+    return state.replace(params=params, opt_state=opt_state), metrics
+
+  return PPO(config=config, obs_size=obs_size, action_size=action_size,
+             action_scale=action_scale, init=init, act=act, mode=mode, log_prob=log_prob,
+             entropy=entropy, value=value, per_sample_loss=per_sample_loss, loss=loss,
+             update=update)
