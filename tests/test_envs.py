@@ -157,3 +157,36 @@ def test_ant_mjx_matches_mujoco_c(compiled_env, name):
   # float32 MJX against float64 C drifts apart under random torques (~0.1 after 1 s); a
   # contact the caps dropped wrongly shows as a fall or a jump of a metre (seen with 4 pairs).
   np.testing.assert_allclose(np.asarray(s.pipeline_state.qpos[0, :3]), d.qpos[:3], atol=0.25)
+
+
+def _push_block(c, state, force, steps):
+  """Step the compiled env with zero torques and a force on the block's centre."""
+  m = c.env.mj_model
+  body = m.body([m.body(b).name for b in range(m.nbody) if m.body(b).name.startswith("block")][0]).id
+  xfrc = np.zeros((SMOKE_BATCH, m.nbody, 6), np.float32)
+  xfrc[:, body, :3] = force
+  zero = jp.zeros((SMOKE_BATCH, 8))
+  for _ in range(steps):
+    ps = state.pipeline_state.replace(xfrc_applied=jp.asarray(xfrc))
+    state = c.step(state.replace(pipeline_state=ps), zero)
+  return state
+
+
+@pytest.mark.slow
+def test_mjx_push_block_slides_when_pushed(compiled_env):
+  """In the MJX program too (contact caps included), the Push block slides into (2, 3)."""
+  c = compiled_env("AntPush")
+  s = c.reset(jax.random.split(jax.random.PRNGKey(0), SMOKE_BATCH))
+  s = _push_block(c, s, (20.0, 0.0, 0.0), 30)  # 3 s
+  x = np.asarray(c.env.block_positions(jax.tree.map(lambda v: v[0], s)))[0]
+  assert 7.0 < x[0] < 8.5 and abs(x[1] - 8.0) < 0.2
+
+
+@pytest.mark.slow
+def test_mjx_fall_block_drops_into_the_chasm(compiled_env):
+  c = compiled_env("AntFall")
+  s = c.reset(jax.random.split(jax.random.PRNGKey(0), SMOKE_BATCH))
+  s = _push_block(c, s, (0.0, 0.5, 0.0), 30)  # a steady push, 3 s
+  s = _push_block(c, s, (0.0, 0.0, 0.0), 30)  # let go, 3 s
+  centre = np.asarray(c.env.block_positions(jax.tree.map(lambda v: v[0], s)))[0]
+  np.testing.assert_allclose(centre, [8.0, 16.0, 2.0], atol=0.15)  # in the chasm, a bridge
