@@ -202,7 +202,7 @@ def make_agent(env, config: AgentConfig = AgentConfig()) -> Agent:
     state, mid_m = jax.lax.cond(warm | (i != c - 1), lambda s: (s, zeros),
                                 lambda s: middle_update(s, km, t), state)
     metrics = {"reward": env_next.reward, "success": env_next.metrics["success"],
-               "distance": env_next.metrics["distance"],
+               "distance": env_next.metrics["distance"], "low/reward": low_tr.reward,
                **{f"low/{n}": v for n, v in low_m.items()},
                **{f"middle/{n}": v for n, v in mid_m.items()}}
     return state, metrics
