@@ -92,3 +92,18 @@ def test_bad_config_fails_before_compiling():
     agent_lib.AgentConfig(goal_range=(1.0, 1.0))
   with pytest.raises(ValueError, match="multiple of c"):
     agent_lib.make_agent(envs.make("PointMaze", episode_length=55), agent_lib.AgentConfig())
+
+
+def test_trainer_chunks_match_the_plain_scan(run):
+  """train.make_trainer's chunks are the same program as scanning agent.step by hand."""
+  from nonmono_jax import train
+
+  _, env, _, _, (_, _, end, _) = run
+  trainer = train.make_trainer(env, _config(), num_seeds=3, chunk_steps=50)
+  states = jax.vmap(trainer.agent.init)(jax.random.split(jax.random.PRNGKey(0), 3))
+  for t0 in (0, 50):
+    states, metrics = trainer.chunk(states, t0)
+  assert metrics["success"].shape == (3,)
+  np.testing.assert_allclose(states.env.obs, end.env.obs, rtol=1e-5, atol=1e-5)
+  with pytest.raises(ValueError, match="num_seeds"):
+    train.make_trainer(env, _config(), num_seeds=0, chunk_steps=10)

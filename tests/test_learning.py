@@ -7,14 +7,13 @@ followed) or a Middle that stopped learning (goals not leading to the target) fa
 import dataclasses
 
 import jax
-import jax.numpy as jp
 import numpy as np
 import pytest
 
 import envs
 from experiments import random_baseline
 from nonmono_jax import agent as agent_lib
-from nonmono_jax import evaluate, td3
+from nonmono_jax import td3, train
 
 SEEDS = 4
 STEPS = 40_000
@@ -29,20 +28,13 @@ def test_hiro_learns_point_maze():
       goal_range=(4.0, 4.0, 0.0), warmup_steps=2_000, middle_goal_noise=1.0,
       low=dataclasses.replace(level, expl_noise=0.2), middle=dataclasses.replace(
           level, buffer_size=10_000))
-  ag = agent_lib.make_agent(env, config)
-  states = jax.jit(jax.vmap(ag.init))(jax.random.split(jax.random.PRNGKey(0), SEEDS))
-
-  @jax.jit
-  def chunk(states, t0):
-    body = lambda st, t: jax.vmap(ag.step, in_axes=(0, None))(st, t)
-    return jax.lax.scan(body, states, t0 + jp.arange(CHUNK))[0]
-
+  trainer = train.make_trainer(env, config, num_seeds=SEEDS, chunk_steps=CHUNK,
+                               eval_episodes=20)
+  states = trainer.init(jax.random.PRNGKey(0))
   for t0 in range(0, STEPS, CHUNK):
-    states = chunk(states, t0)
-  s_e, dist = jax.jit(jax.vmap(
-      lambda lo, mi: evaluate.success_rate(ag, env, lo, mi, jax.random.PRNGKey(7), 20)))(
-          states.low.params, states.middle.params)
-  s_e, dist = np.asarray(s_e), np.asarray(dist)
+    states, metrics = trainer.chunk(states, t0)
+  assert np.all(np.asarray(metrics["low/critic_loss"]) > 0)
+  s_e, dist = map(np.asarray, trainer.evaluate(states, jax.random.PRNGKey(7)))
   rand = random_baseline.run("PointMaze", episodes=256, episode_length=100)
   print("S_E", s_e, "final distance", dist, "random", rand["success_rate"], rand["final_distance"])
   assert rand["success_rate"] < 0.1
