@@ -177,24 +177,24 @@ def make_agent(env, config: AgentConfig = AgentConfig()) -> Agent:
                                 rewards=state.segment.rewards.at[i].set(env_next.reward))
     state = state.replace(env=env_next, low_buffer=low_buffer, goal=g_next, segment=seg, key=key)
 
+    # An episode ends only at a segment's end (episode_length is a multiple of c), after
+    # s_c is stored, so the reset comes first and the next goal is chosen from the new state.
+    episode_end = (t + 1) % env.episode_length == 0
+    state = jax.lax.cond(episode_end, lambda s: s.replace(env=env.reset(kr)), lambda s: s, state)
+
     def end_segment(state):
+      """Middle transition into its buffer; the Middle's next goal starts a new segment."""
       seg = state.segment
       tr = td3.Transition(obs=seg.obs[0], context=target, action=seg.goal,
                           reward=hierarchy.middle_reward(seg.rewards), next_obs=seg.obs[c],
                           next_context=target, done=jp.zeros(()))
       item = {"transition": tr, "states": seg.obs, "actions": seg.actions}
       mbuf = buffers.add(state.middle_buffer, jax.tree.map(lambda x: x[None], item))
-      return state.replace(middle_buffer=mbuf)
+      goal = middle_goal(state.middle.params, state.env.obs, kg, warm)
+      return state.replace(middle_buffer=mbuf, goal=goal,
+                           segment=empty_segment(state.env.obs, goal))
 
     state = jax.lax.cond(i == c - 1, end_segment, lambda s: s, state)
-
-    episode_end = (t + 1) % env.episode_length == 0
-    env_state = jax.lax.cond(episode_end, lambda: env.reset(kr), lambda: state.env)
-    new_goal = middle_goal(state.middle.params, env_state.obs, kg, warm)
-    goal = jp.where(i == c - 1, new_goal, state.goal)
-    fresh = empty_segment(env_state.obs, new_goal)
-    segment = jax.tree.map(lambda f, o: jp.where(i == c - 1, f, o), fresh, state.segment)
-    state = state.replace(env=env_state, goal=goal, segment=segment)
 
     zeros = {"critic_loss": jp.zeros(()), "q": jp.zeros(()), "target_q": jp.zeros(()),
              "actor_loss": jp.zeros(())}
