@@ -14,16 +14,13 @@ Writes ``benchmarks/results/env_throughput_<platform>_<date>.json`` and prints a
 from __future__ import annotations
 
 import argparse
-import datetime
-import json
-import os
-import platform
 import time
 
 import jax
 import jax.numpy as jp
 
 import envs
+from benchmarks import common
 from envs import ant_maze, tasks
 
 
@@ -67,20 +64,13 @@ def measure(env, batch: int, steps: int, repeats: int) -> dict:
           "timed_steps": steps}
 
 
-def machine() -> dict:
-  dev = jax.devices()[0]
-  return {"platform": dev.platform, "device": str(dev.device_kind), "cpu_count": os.cpu_count(),
-          "processor": platform.processor() or platform.machine(),
-          "python": platform.python_version(), "jax": jax.__version__}
-
-
 def main(argv=None):
   p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
   p.add_argument("--envs", nargs="+", default=["AntFlat", "AntPush", "AntFall", "brax-ant"])
   p.add_argument("--batches", nargs="+", type=int, default=None)
   p.add_argument("--steps", type=int, default=20, help="env steps per timed call")
   p.add_argument("--repeats", type=int, default=3)
-  p.add_argument("--out", default=os.path.join(os.path.dirname(__file__), "results"))
+  p.add_argument("--out", default=common.RESULTS)
   args = p.parse_args(argv)
   on_gpu = jax.default_backend() == "gpu"
   batches = args.batches or ([1, 16, 256, 4096] if on_gpu else [1, 16, 256])
@@ -100,16 +90,7 @@ def main(argv=None):
         ratios[f"{name}/AntFlat@{b}"] = by[(name, b)] / by[("AntFlat", b)]
   for k, v in ratios.items():
     print(f"{k}: {v:.2f}")
-  date = datetime.date.today().isoformat()
-  info = machine()
-  result = {"benchmark": "env_throughput", "date": date, "machine": info,
-            "command": "python -m benchmarks.env_throughput " + " ".join(argv or []),
-            "results": rows, "ratios_to_bare_ant": ratios}
-  os.makedirs(args.out, exist_ok=True)
-  path = os.path.join(args.out, f"env_throughput_{info['platform']}_{date}.json")
-  with open(path, "w") as f:
-    json.dump(result, f, indent=2)
-  print("wrote", path)
+  common.write_result("env_throughput", args.out, argv, results=rows, ratios_to_bare_ant=ratios)
 
 
 if __name__ == "__main__":

@@ -14,15 +14,12 @@ Writes ``benchmarks/results/train_throughput_<platform>_<date>.json`` and prints
 from __future__ import annotations
 
 import argparse
-import datetime
-import json
-import os
 import time
 
 import jax
 
 import envs
-from benchmarks.env_throughput import machine
+from benchmarks import common
 from nonmono_jax import agent as agent_lib
 from nonmono_jax import train
 
@@ -51,7 +48,7 @@ def main(argv=None):
   p.add_argument("--seeds", nargs="+", type=int, default=[1, 4, 16])
   p.add_argument("--chunk", type=int, default=200, help="env steps per timed call")
   p.add_argument("--repeats", type=int, default=2)
-  p.add_argument("--out", default=os.path.join(os.path.dirname(__file__), "results"))
+  p.add_argument("--out", default=common.RESULTS)
   args = p.parse_args(argv)
   rows = []
   for name in args.envs:
@@ -60,18 +57,11 @@ def main(argv=None):
       rows.append(r)
       print(f"{name:9s} hiro seeds {s:3d}: {r['env_steps_per_s']:8.1f} env steps/s "
             f"(compile+first {r['compile_plus_first_s']:.1f} s)", flush=True)
-  date = datetime.date.today().isoformat()
-  info = machine()
-  result = {"benchmark": "train_throughput", "date": date, "machine": info,
-            "command": "python -m benchmarks.train_throughput " + " ".join(argv or []),
-            "settings": "paper: 1 env/seed, Low TD3 update every step (batch 100, 300-300), "
-                        "Middle TD3 + relabelling every 10 steps, warm-up 0",
-            "results": rows}
-  os.makedirs(args.out, exist_ok=True)
-  path = os.path.join(args.out, f"train_throughput_{info['platform']}_{date}.json")
-  with open(path, "w") as f:
-    json.dump(result, f, indent=2)
-  print("wrote", path)
+  common.write_result(
+      "train_throughput", args.out, argv,
+      settings="paper: 1 env/seed, Low TD3 update every step (batch 100, 300-300), "
+               "Middle TD3 + relabelling every 10 steps, warm-up 0",
+      results=rows)
 
 
 if __name__ == "__main__":
