@@ -1,19 +1,23 @@
-"""One env step of the hierarchical agent, for one seed (vmap over seeds, scan over time).
+"""One env step of the whole agent for one seed: the paper's Algorithm 1 (vmap seeds, scan time).
 
-So far the two HIRO levels (Middle TD3 with Gaussian goal noise, goal-conditioned Low TD3);
-the Top PPO and the mode switch of the paper's Algorithm 1 build on this step.
+A seed runs ``num_envs`` envs (1 in the paper) that share its learners and buffers. Per step t:
 
-    a    = clip(pi_L(s, g) + N(0, sigma_L))          (uniform random during warm-up)
-    s'   = env.step(s, a);  g' = s[:3] + g - s'[:3];  r_L = -||g'||
-    Low buffer  <- (s, g, a, r_L, s', g', ||g'|| <= 1.5);  Low TD3 update (after warm-up)
+    Low:     a = clip(pi_L(s, g) + noise) (uniform in warm-up) -> env.step -> s', R, success
+             Low buffer <- (s, g, a, r_L, s', g');  g <- g' = s[:3] + g - s'[:3]
+    Top:     R_m += R, Done_m += success, Count_m += 1                           (top.py)
+    switch:  Ref: V(s') -> value promise discrepancy -> homeostasis -> explore?   (switch.py)
+    episode end (every episode_length steps, all envs at once): reset
     every c steps (Middle horizon):
-      Middle buffer <- (s_0, target, g_0, 0.1 sum R, s_c, target) + the segment (s_0..s_c, a)
-      g = clip(pi_M(s_c, target) + N(0, sigma_M), +-goal_range)  (uniform during warm-up)
-      Middle TD3 update on relabelled goals (after warm-up)
-    episode end: reset (episodes are synchronised across seeds: a fixed length, no termination)
+      Middle TD3 buffer + Middle PPO rollout <- (s_0, g, 0.1 sum R, s_c)           (middle.py)
+      every top.horizon steps (ours): Top transition; g_expl_mode ~ pi_T(s, target)
+      next goal from the sub-policy of g_expl_mode (TD3 / PPO / RANDOM)
+    updates (after warm-up): Low TD3 every step, Middle TD3 every c, Middle PPO every 30,
+      Top PPO every 400; evaluation of Middle TD3 + Low TD3 every 10K steps -> S_E
 
-Every gate (warm-up, Middle horizon, episode end, delayed actor) is a function of the global
-step ``t``, which is not batched over seeds, so each stays a real ``lax.cond`` under ``vmap``.
+Methods differ only in ``config.switch``: "none" (HIRO: always TD3, Gaussian goal noise),
+"top" (ours) or "homeostasis" (Ref:Uniform / Ref:PPO). Every gate is a function of the global
+step ``t``, which is not batched over seeds, so each stays a real ``lax.cond`` under ``vmap``
+(SPEC section 6); only per-env data (modes, explore periods) is batched.
 """
 
 from __future__ import annotations
@@ -25,187 +29,248 @@ import jax
 import jax.numpy as jp
 from flax import struct
 
-from nonmono_jax import buffers, hierarchy, relabel, td3
+from nonmono_jax import buffers, hierarchy, ppo, td3
+from nonmono_jax import evaluate as evaluate_lib
+from nonmono_jax.config import AgentConfig, TopConfig  # noqa: F401  (re-exported)
+from nonmono_jax.low import Low, make_low
+from nonmono_jax.middle import Middle, Segment, make_middle
+from nonmono_jax.switch import InformedSwitch, TriggerState, make_informed_switch
+from nonmono_jax.top import Horizon, Top, make_top
 
-
-@dataclasses.dataclass(frozen=True)
-class AgentConfig:
-  """The hierarchy's options; defaults are SPEC section 2 (Ant tasks)."""
-
-  c: int = 10  # Middle horizon
-  goal_range: tuple[float, float, float] = (10.0, 10.0, 0.5)
-  warmup_steps: int = 100_000  # random low actions and goals, no updates
-  middle_goal_noise: float = 1.0  # HIRO: Gaussian goal noise, std per dim
-  low: td3.TD3Config = td3.TD3Config()
-  middle: td3.TD3Config = td3.TD3Config()
-
-  def __post_init__(self):
-    if self.c < 1:
-      raise ValueError(f"c must be >= 1, got {self.c}")
-    if len(self.goal_range) != hierarchy.GOAL_SIZE:
-      raise ValueError(f"goal_range must have {hierarchy.GOAL_SIZE} entries (x, y, z), "
-                       f"got {self.goal_range}")
-    if any(r < 0 for r in self.goal_range):
-      raise ValueError(f"goal_range must be >= 0, got {self.goal_range}")
-    if self.warmup_steps < 0:
-      raise ValueError(f"warmup_steps must be >= 0, got {self.warmup_steps}")
-    if self.middle_goal_noise < 0:
-      raise ValueError(f"middle_goal_noise must be >= 0, got {self.middle_goal_noise}")
-
-
-@struct.dataclass
-class Segment:
-  """The low steps under the current Middle goal (for the Middle transition and relabelling)."""
-
-  obs: jax.Array  # (c + 1, obs): s_0 .. s_c
-  actions: jax.Array  # (c, action)
-  rewards: jax.Array  # (c,) task rewards
-  goal: jax.Array  # (3,) the goal the Middle emitted at s_0
+N_MODES = len(hierarchy.MODES)
 
 
 @struct.dataclass
 class SeedState:
-  """Everything one seed owns."""
+  """Everything one seed owns; per-env fields have a leading ``num_envs`` axis."""
 
-  env: Any  # envs.MazeState
+  env: Any  # envs.MazeState, (E,)
   low: td3.TD3State
   middle: td3.TD3State
+  middle_ppo: ppo.PPOState | None
+  top: ppo.PPOState | None
   low_buffer: buffers.ReplayBuffer
   middle_buffer: buffers.ReplayBuffer
-  goal: jax.Array
-  segment: Segment
+  middle_rollout: ppo.Rollout | None  # (E, middle_ppo_every / c)
+  top_rollout: ppo.Rollout | None  # (E, top.train_every / top.horizon)
+  goal: jax.Array  # (E, 3)
+  segment: Segment  # (E,)
+  mode: jax.Array  # (E,) int32 g_expl_mode in effect
+  horizon: Horizon | None  # (E,) the current Top horizon (ours)
+  trigger: TriggerState | None  # (E,) the informed switch (Ref:*)
+  mode_steps: jax.Array  # (3,) int32 env steps run in each mode after warm-up
+  s_e: jax.Array  # the latest evaluation success rate S_E
+  eval_distance: jax.Array  # and its mean final distance to the target
   key: jax.Array
 
 
 @dataclasses.dataclass(frozen=True)
 class Agent:
-  """Pure functions of the agent: ``init(key) -> SeedState``, ``step(state, t)``."""
+  """The agent's pure functions: ``init(key) -> SeedState`` and ``step(state, t)``."""
 
   config: AgentConfig
-  low: td3.TD3
-  middle: td3.TD3
+  env: Any
+  low: Low
+  middle: Middle
+  top: Top | None
+  switch: InformedSwitch | None
   init: Callable[[jax.Array], SeedState]
   step: Callable[[SeedState, jax.Array], tuple[SeedState, dict]]
-  middle_goal: Callable[..., jax.Array]
+  evaluate: Callable[..., tuple[jax.Array, jax.Array]]  # (low params, middle params, key)
+
+
+def _gated(pred, fn, state):
+  """``lax.cond(pred, fn, skip)`` where skip returns ``state`` and zero metrics."""
+  _, shapes = jax.eval_shape(fn, state)
+
+  def skip(s):
+    return s, jax.tree.map(lambda x: jp.zeros(x.shape, x.dtype), shapes)
+
+  return jax.lax.cond(pred, fn, skip, state)
+
+
+def _prefixed(prefix, metrics, ran):
+  return {**{f"{prefix}/{k}": v for k, v in metrics.items()},
+          f"{prefix}/updated": jp.asarray(ran, jp.float32)}
 
 
 def make_agent(env, config: AgentConfig = AgentConfig()) -> Agent:
   """Build the agent for an env of ``envs`` (obs[:3] is the robot's xyz)."""
-  if env.episode_length % config.c:
-    raise ValueError(f"episode_length ({env.episode_length}) must be a multiple of c "
-                     f"({config.c}): Middle segments end with episodes")
-  obs_size, act_size, k = env.observation_size, env.action_size, hierarchy.GOAL_SIZE
-  goal_range = jp.asarray(config.goal_range, jp.float32)
+  config.check_env(env)
+  E, c, L = config.num_envs, config.c, env.episode_length
+  obs_size, act_size = env.observation_size, env.action_size
   target = jp.asarray(env.target, jp.float32)
-  lim = env.action_limit
-  low = td3.make_td3(obs_size, k, act_size, lim, config.low)
-  middle = td3.make_td3(obs_size, k, k, goal_range, config.middle)
-  c = config.c
+  has_top, informed = config.switch == "top", config.switch == "homeostasis"
+  has_ppo = config.uses_middle_ppo
+  top_cfg = config.top
+  live_from = config.warmup_steps + top_cfg.starting_steps  # the Top's own choices start here
 
-  def middle_goal(middle_params, obs, key, warm):
-    """pi_M(s, target) + N(0, sigma_M), clipped; uniform over the range during warm-up."""
-    k1, k2 = jax.random.split(key)
-    random = jax.random.uniform(k1, (k,), minval=-goal_range, maxval=goal_range)
-    noisy = middle.explore(middle_params, obs, target, k2, config.middle_goal_noise)
-    return jp.where(warm, random, noisy)
+  low = make_low(obs_size, act_size, env.action_limit, config.low, config.low_updates)
+  middle = make_middle(obs_size, act_size, target, config)
+  top = make_top(obs_size, target, top_cfg) if has_top else None
+  switch = (make_informed_switch(config.homeostasis, config.explore_mode_index)
+            if informed else None)
+  evaluate = evaluate_lib.make_evaluate(env, c, low.td3.act, middle.td3.act,
+                                        config.eval_episodes)
 
-  def empty_segment(obs, goal):
-    return Segment(obs=jp.zeros((c + 1, obs_size)).at[0].set(obs),
-                   actions=jp.zeros((c, act_size)), rewards=jp.zeros((c,)), goal=goal)
+  def value(middle_params, obs):
+    """V(s) = Q1_M(s, target, pi_M(s, target)), the informed trigger's value."""
+    tgt = jp.broadcast_to(target, obs.shape[:-1] + target.shape)
+    return middle.td3.q_values(middle_params.critic, obs, tgt,
+                               middle.td3.act(middle_params, obs, tgt))[0]
 
-  low_example = td3.Transition(obs=jp.zeros(obs_size), context=jp.zeros(k),
-                               action=jp.zeros(act_size), reward=jp.zeros(()),
-                               next_obs=jp.zeros(obs_size), next_context=jp.zeros(k),
-                               done=jp.zeros(()))
-  middle_example = {
-      "transition": td3.Transition(obs=jp.zeros(obs_size), context=jp.zeros(k),
-                                   action=jp.zeros(k), reward=jp.zeros(()),
-                                   next_obs=jp.zeros(obs_size), next_context=jp.zeros(k),
-                                   done=jp.zeros(())),
-      "states": jp.zeros((c + 1, obs_size)),
-      "actions": jp.zeros((c, act_size)),
-  }
+  def goals(state, obs, mode, key, warm, t):
+    ppo_params = state.middle_ppo.params if has_ppo else None
+    return jax.vmap(middle.goal, in_axes=(None, None, 0, 0, 0, None, None))(
+        state.middle.params, ppo_params, obs, mode, jax.random.split(key, E), warm, t)
 
   def init(key):
-    ke, kl, km, kg, key = jax.random.split(key, 5)
-    env_state = env.reset(ke)
-    low_state, middle_state = low.init(kl), middle.init(km)
-    goal = middle_goal(middle_state.params, env_state.obs, kg, True)
-    return SeedState(
-        env=env_state, low=low_state, middle=middle_state,
-        low_buffer=buffers.init(low_example, config.low.buffer_size),
-        middle_buffer=buffers.init(middle_example, config.middle.buffer_size),
-        goal=goal, segment=empty_segment(env_state.obs, goal), key=key)
-
-  def low_update(state, key, t):
-    batch = buffers.sample(state.low_buffer, key, config.low.batch_size)
-    new, metrics = low.update(state.low, batch, jax.random.fold_in(key, 1),
-                              t % config.low.policy_delay == 0)
-    return state.replace(low=new), metrics
-
-  def middle_update(state, key, t):
-    k1, k2, k3 = jax.random.split(key, 3)
-    sample = buffers.sample(state.middle_buffer, k1, config.middle.batch_size)
-    policy = lambda s, g: low.act(state.low.params, s, g)
-    goals, _ = jax.vmap(lambda kk, s, a, g: relabel.relabel(kk, policy, s, a, g, goal_range))(
-        jax.random.split(k2, config.middle.batch_size), sample["states"], sample["actions"],
-        sample["transition"].action)
-    batch = sample["transition"].replace(action=goals)
-    update_actor = (t // c) % config.middle.policy_delay == 0
-    new, metrics = middle.update(state.middle, batch, k3, update_actor)
-    return state.replace(middle=new), metrics
+    ke, kl, km, kp, kt, kg, key = jax.random.split(key, 7)
+    env_state = jax.vmap(env.reset)(jax.random.split(ke, E))
+    obs = env_state.obs
+    state = SeedState(
+        env=env_state, low=low.td3.init(kl), middle=middle.td3.init(km),
+        middle_ppo=middle.ppo.init(kp) if has_ppo else None,
+        top=top.ppo.init(kt) if has_top else None,
+        low_buffer=low.init_buffer(), middle_buffer=middle.init_buffer(),
+        middle_rollout=(jax.vmap(lambda _: middle.init_rollout())(jp.arange(E))
+                        if has_ppo else None),
+        top_rollout=jax.vmap(lambda _: top.init_rollout())(jp.arange(E)) if has_top else None,
+        goal=jp.zeros((E, hierarchy.GOAL_SIZE)), segment=None,
+        mode=jp.full((E,), hierarchy.TD3, jp.int32), horizon=None, trigger=None,
+        mode_steps=jp.zeros((N_MODES,), jp.int32), s_e=jp.zeros(()),
+        eval_distance=jp.zeros(()), key=key)
+    if has_top:
+      horizon = jax.vmap(top.start, in_axes=(None, 0, 0, None))(
+          state.top.params, obs, jax.random.split(kt, E), True)
+      state = state.replace(horizon=horizon, mode=horizon.mode)
+    if informed:
+      trigger = jax.vmap(switch.init)(value(state.middle.params, obs))
+      state = state.replace(trigger=trigger, mode=jax.vmap(switch.mode)(trigger))
+    goal, log_prob = goals(state, obs, state.mode, kg, True, 0)
+    return state.replace(goal=goal, segment=jax.vmap(middle.new_segment)(obs, goal, log_prob))
 
   def step(state: SeedState, t):
-    """One env step at global step ``t`` (unbatched)."""
-    key, ka, kg, kr, kl, km = jax.random.split(state.key, 6)
+    """One env step of every env of the seed, at global step ``t`` (unbatched)."""
+    key, ka, kr, ks, kh, kg, kl, km, kp, kt, kev = jax.random.split(state.key, 11)
     warm = t < config.warmup_steps
-    s = state.env.obs
-    a_random = jax.random.uniform(ka, (act_size,), minval=-lim, maxval=lim)
-    a_policy = low.explore(state.low.params, s, state.goal, ka)
-    a = jp.where(warm, a_random, a_policy)
-    env_next = env.step(state.env, a)
-    s_next = env_next.obs
-    g_next = hierarchy.goal_transition(s, state.goal, s_next)
-    low_tr = td3.Transition(obs=s, context=state.goal, action=a,
-                            reward=hierarchy.low_reward(s, state.goal, s_next),
-                            next_obs=s_next, next_context=g_next,
-                            done=hierarchy.low_done(g_next))
-    low_buffer = buffers.add(state.low_buffer, jax.tree.map(lambda x: x[None], low_tr))
+    live = jp.logical_not(warm)
     i = t % c
-    seg = state.segment.replace(obs=state.segment.obs.at[i + 1].set(s_next),
-                                actions=state.segment.actions.at[i].set(a),
-                                rewards=state.segment.rewards.at[i].set(env_next.reward))
-    state = state.replace(env=env_next, low_buffer=low_buffer, goal=g_next, segment=seg, key=key)
+    episode_end = (t + 1) % L == 0
+    segment_end = i == c - 1
+
+    # Low acts in every env; the env steps.
+    s = state.env.obs
+    a = jax.vmap(low.act, in_axes=(None, 0, 0, 0, None))(
+        state.low.params, s, state.goal, jax.random.split(ka, E), warm)
+    env_next = jax.vmap(env.step)(state.env, a)
+    s_next, reward = env_next.obs, env_next.reward
+    success = env_next.metrics["success"]
+    low_tr = jax.vmap(low.transition)(s, state.goal, a, s_next)
+    counted = jax.nn.one_hot(state.mode, N_MODES, dtype=jp.int32).sum(0) * live
+    state = state.replace(
+        env=env_next, low_buffer=buffers.add(state.low_buffer, low_tr), goal=low_tr.next_context,
+        segment=jax.vmap(middle.record, in_axes=(0, None, 0, 0, 0))(
+            state.segment, i, a, s_next, reward),
+        mode_steps=state.mode_steps + counted, key=key)
+    metrics = {"reward": reward.mean(), "success": success.mean(),
+               "distance": env_next.metrics["distance"].mean(), "low/reward": low_tr.reward.mean(),
+               **{f"count/{m}": counted[j] for j, m in enumerate(hierarchy.MODES)}}
+
+    if has_top:
+      state = state.replace(horizon=jax.vmap(top.accumulate)(state.horizon, reward, success))
+    if informed:
+      window_full = live & ((t % L) + 1 >= config.homeostasis.k)
+      trigger, switched = jax.vmap(switch.step, in_axes=(0, 0, 0, 0, None))(
+          state.trigger, value(state.middle.params, s_next), reward, jax.random.split(ks, E),
+          window_full)
+      state = state.replace(trigger=trigger, mode=jax.vmap(switch.mode)(trigger))
+      metrics["switch/switches"] = switched.sum().astype(jp.float32)
 
     # An episode ends only at a segment's end (episode_length is a multiple of c), after
     # s_c is stored, so the reset comes first and the next goal is chosen from the new state.
-    episode_end = (t + 1) % env.episode_length == 0
-    state = jax.lax.cond(episode_end, lambda s: s.replace(env=env.reset(kr)), lambda s: s, state)
+    def reset(state):
+      env_state = jax.vmap(env.reset)(jax.random.split(kr, E))
+      state = state.replace(env=env_state)
+      if informed:
+        trigger = jax.vmap(switch.reset)(state.trigger, value(state.middle.params, env_state.obs))
+        state = state.replace(trigger=trigger, mode=jax.vmap(switch.mode)(trigger))
+      return state
+
+    state = jax.lax.cond(episode_end, reset, lambda s: s, state)
+
+    def end_horizon(state):
+      """Top transition of the finished horizon; the Top picks the next g_expl_mode."""
+      start_t = t + 1 - top_cfg.horizon
+      tr, m = jax.vmap(top.close, in_axes=(0, None, None))(
+          state.horizon, start_t < live_from, episode_end)
+      j = (t // top_cfg.horizon) % top_cfg.rollout_length
+      rollout = jax.tree.map(lambda r, x: r.at[:, j].set(x), state.top_rollout, tr)
+      horizon = jax.vmap(top.start, in_axes=(None, 0, 0, None))(
+          state.top.params, state.env.obs, jax.random.split(kh, E), t + 1 < live_from)
+      probs = jax.vmap(lambda x: jp.exp(jax.vmap(
+          lambda a: top.ppo.log_prob(state.top.params, x, a, None))(jp.arange(N_MODES))))(
+              horizon.obs).mean(0)
+      m = {k: v.mean() for k, v in m.items()}
+      m.update({f"p_{name}": probs[j] for j, name in enumerate(hierarchy.MODES)})
+      return state.replace(top_rollout=rollout, horizon=horizon, mode=horizon.mode), m
 
     def end_segment(state):
-      """Middle transition into its buffer; the Middle's next goal starts a new segment."""
-      seg = state.segment
-      tr = td3.Transition(obs=seg.obs[0], context=target, action=seg.goal,
-                          reward=hierarchy.middle_reward(seg.rewards), next_obs=seg.obs[c],
-                          next_context=target, done=jp.zeros(()))
-      item = {"transition": tr, "states": seg.obs, "actions": seg.actions}
-      mbuf = buffers.add(state.middle_buffer, jax.tree.map(lambda x: x[None], item))
-      goal = middle_goal(state.middle.params, state.env.obs, kg, warm)
-      return state.replace(middle_buffer=mbuf, goal=goal,
-                           segment=empty_segment(state.env.obs, goal))
+      """Middle transitions into the TD3 buffer and PPO rollout; the next goals."""
+      items, steps = jax.vmap(middle.close, in_axes=(0, None))(state.segment, episode_end)
+      state = state.replace(middle_buffer=buffers.add(state.middle_buffer, items))
+      if has_ppo:
+        j = (t // c) % config.middle_rollout_length
+        state = state.replace(middle_rollout=jax.tree.map(
+            lambda r, x: r.at[:, j].set(x), state.middle_rollout, steps))
+      m = {}
+      if has_top:
+        state, m = _gated(t % top_cfg.horizon == top_cfg.horizon - 1, end_horizon, state)
+      obs = state.env.obs
+      goal, log_prob = goals(state, obs, state.mode, kg, t + 1 < config.warmup_steps, t)
+      return state.replace(goal=goal,
+                           segment=jax.vmap(middle.new_segment)(obs, goal, log_prob)), m
 
-    state = jax.lax.cond(i == c - 1, end_segment, lambda s: s, state)
+    state, horizon_m = _gated(segment_end, end_segment, state)
+    if has_top:
+      metrics.update(_prefixed("horizon", horizon_m,
+                               segment_end & (t % top_cfg.horizon == top_cfg.horizon - 1)))
 
-    zeros = {"critic_loss": jp.zeros(()), "q": jp.zeros(()), "target_q": jp.zeros(()),
-             "actor_loss": jp.zeros(())}
-    state, low_m = jax.lax.cond(warm, lambda s: (s, zeros), lambda s: low_update(s, kl, t), state)
-    state, mid_m = jax.lax.cond(warm | (i != c - 1), lambda s: (s, zeros),
-                                lambda s: middle_update(s, km, t), state)
-    metrics = {"reward": env_next.reward, "success": env_next.metrics["success"],
-               "distance": env_next.metrics["distance"], "low/reward": low_tr.reward,
-               **{f"low/{n}": v for n, v in low_m.items()},
-               **{f"middle/{n}": v for n, v in mid_m.items()}}
+    # Learning, after warm-up, each on its own clock.
+    def low_update(state):
+      new, m = low.update(state.low, state.low_buffer, kl, t)
+      return state.replace(low=new), m
+
+    def middle_update(state):
+      low_act = lambda obs, g: low.td3.act(state.low.params, obs, g)
+      new, m = middle.td3_update(state.middle, state.middle_buffer, low_act, km, t)
+      return state.replace(middle=new), m
+
+    def middle_ppo_update(state):
+      rollout = state.middle_rollout
+      new, m = middle.ppo_update(state.middle_ppo, rollout, t)
+      return state.replace(middle_ppo=new), {**m, "std": middle.ppo_std(t)}
+
+    def top_update(state):
+      new, m = top.update(state.top, state.top_rollout, state.s_e)
+      return state.replace(top=new), m
+
+    def evaluation(state):
+      s_e, dist = evaluate(state.low.params, state.middle.params, kev)
+      return state.replace(s_e=s_e, eval_distance=dist), {"success": s_e, "distance": dist}
+
+    gates = [("low", live, low_update), ("middle", live & segment_end, middle_update)]
+    if has_ppo:
+      every = config.middle_ppo_every
+      gates.append(("middle_ppo", live & (t % every == every - 1), middle_ppo_update))
+    if has_top:
+      every = top_cfg.train_every
+      gates.append(("top", live & (t % every == every - 1), top_update))
+    gates.append(("eval", live & ((t + 1) % config.eval_every == 0), evaluation))
+    for name, pred, fn in gates:
+      state, m = _gated(pred, fn, state)
+      metrics.update(_prefixed(name, m, pred))
     return state, metrics
 
-  return Agent(config=config, low=low, middle=middle, init=init, step=step,
-               middle_goal=middle_goal)
+  return Agent(config=config, env=env, low=low, middle=middle, top=top, switch=switch,
+               init=init, step=step, evaluate=evaluate)

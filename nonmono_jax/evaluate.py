@@ -8,31 +8,40 @@ task's success radius at any step. Episodes run vmapped inside one ``lax.scan``.
 
 from __future__ import annotations
 
+from typing import Callable
+
 import jax
 import jax.numpy as jp
 
 from nonmono_jax import hierarchy
 
 
-def success_rate(agent, env, low_params, middle_params, key, episodes: int) -> jax.Array:
-  """S_E: the fraction of ``episodes`` that reach the target (and their final distances)."""
-  c = agent.config.c
+def make_evaluate(env, c: int, low_act: Callable, middle_act: Callable,
+                  episodes: int) -> Callable:
+  """``evaluate(low_params, middle_params, key) -> (S_E, mean final distance)``.
+
+  ``low_act(params, obs, goal)`` and ``middle_act(params, obs, target)`` are the noiseless
+  TD3 policies.
+  """
   target = jp.asarray(env.target, jp.float32)
 
-  def episode(key):
-    s = env.reset(key)
-    g = agent.middle.act(middle_params, s.obs, target)
+  def evaluate(low_params, middle_params, key):
+    def episode(key):
+      s = env.reset(key)
+      g = middle_act(middle_params, s.obs, target)
 
-    def body(carry, t):
-      s, g = carry
-      a = agent.low.act(low_params, s.obs, g)
-      s2 = env.step(s, a)
-      g2 = hierarchy.goal_transition(s.obs, g, s2.obs)
-      g2 = jp.where((t + 1) % c == 0, agent.middle.act(middle_params, s2.obs, target), g2)
-      return (s2, g2), s2.metrics["success"]
+      def body(carry, t):
+        s, g = carry
+        a = low_act(low_params, s.obs, g)
+        s2 = env.step(s, a)
+        g2 = hierarchy.goal_transition(s.obs, g, s2.obs)
+        g2 = jp.where((t + 1) % c == 0, middle_act(middle_params, s2.obs, target), g2)
+        return (s2, g2), s2.metrics["success"]
 
-    (s_end, _), success = jax.lax.scan(body, (s, g), jp.arange(env.episode_length))
-    return success.max(), s_end.metrics["distance"]
+      (s_end, _), success = jax.lax.scan(body, (s, g), jp.arange(env.episode_length))
+      return success.max(), s_end.metrics["distance"]
 
-  success, distance = jax.vmap(episode)(jax.random.split(key, episodes))
-  return success.mean(), distance.mean()
+    success, distance = jax.vmap(episode)(jax.random.split(key, episodes))
+    return success.mean(), distance.mean()
+
+  return evaluate

@@ -101,7 +101,10 @@ class PPOState:
 
 @struct.dataclass
 class Rollout:
-  """N transitions in time order; ``action`` is (N, A) float (Gaussian) or (N,) int (discrete)."""
+  """N transitions in time order; ``action`` is (N, A) float (Gaussian) or (N,) int (discrete).
+
+  Several envs' rollouts stack on a leading axis: (E, N, ...), returns computed per env.
+  """
 
   obs: jax.Array  # (N, obs_size)
   action: jax.Array
@@ -138,7 +141,11 @@ def gaussian_std(step: jax.Array, config: PPOConfig) -> jax.Array:
 
 def monte_carlo_returns(rewards: jax.Array, dones: jax.Array, gamma: float,
                         normalize: bool = True) -> jax.Array:
-  """Discounted returns, reset at dones, not bootstrapped at the end; normalised by default."""
+  """Discounted returns along the last (time) axis, reset at dones, not bootstrapped at the end.
+
+  Leading axes are independent rollouts (several envs); the normalisation, on by default, runs
+  over all of them together.
+  """
   rewards = jp.asarray(rewards, jp.float32)
   dones = jp.asarray(dones).astype(jp.float32)
 
@@ -147,7 +154,10 @@ def monte_carlo_returns(rewards: jax.Array, dones: jax.Array, gamma: float,
     g = r + gamma * g * (1.0 - d)
     return g, g
 
-  _, returns = jax.lax.scan(step, jp.zeros((), jp.float32), (rewards, dones), reverse=True)
+  time_first = lambda x: jp.moveaxis(x, -1, 0)
+  _, returns = jax.lax.scan(step, jp.zeros(rewards.shape[:-1], jp.float32),
+                            (time_first(rewards), time_first(dones)), reverse=True)
+  returns = jp.moveaxis(returns, 0, -1)
   if normalize:
     returns = (returns - returns.mean()) / (returns.std(ddof=1) + _RETURN_EPS)
   return returns
@@ -167,7 +177,12 @@ def make_ppo(obs_size: int, action_size: int, config: PPOConfig = PPOConfig(),
   if action_scale is None:
     action_scale = jp.ones((action_size,), jp.float32)
   action_scale = jp.broadcast_to(jp.asarray(action_scale, jp.float32), (action_size,))
-  log_scale_sum = jp.sum(jp.log(action_scale))
+  # A dimension with scale 0 (a goal range of 0, e.g. z for the point robot) is fixed at 0:
+  # it has no distribution and adds nothing to log-probabilities or the entropy.
+  active = action_scale > 0
+  n_active = int(jp.sum(active)) if not discrete else action_size
+  safe_scale = jp.where(active, action_scale, 1.0)
+  log_scale_sum = jp.sum(jp.where(active, jp.log(safe_scale), 0.0))
 
   actor = networks.make_mlp(obs_size, config.hidden, action_size, activation=nn.tanh,
                             final_activation=None if discrete else nn.tanh)
@@ -187,9 +202,10 @@ def make_ppo(obs_size: int, action_size: int, config: PPOConfig = PPOConfig(),
     return out if discrete else out * action_scale
 
   def _gaussian_log_prob(mean, action, std):
-    sigma = std * action_scale
+    sigma = std * safe_scale
     z = (action - mean) / sigma
-    return jp.sum(-0.5 * z**2 - jp.log(sigma), axis=-1) - 0.5 * action_size * math.log(2 * jp.pi)
+    per_dim = jp.where(active, -0.5 * z**2 - jp.log(sigma), 0.0)
+    return jp.sum(per_dim, axis=-1) - 0.5 * n_active * math.log(2 * jp.pi)
 
   def log_prob(params, obs, action, std):
     head = _head(params, obs)
@@ -203,7 +219,7 @@ def make_ppo(obs_size: int, action_size: int, config: PPOConfig = PPOConfig(),
     if discrete:
       logp = jax.nn.log_softmax(head)
       return -jp.sum(jp.exp(logp) * logp, axis=-1)
-    h = 0.5 * action_size * _LOG_2PI_E + action_size * jp.log(std) + log_scale_sum
+    h = 0.5 * n_active * _LOG_2PI_E + n_active * jp.log(std) + log_scale_sum
     return jp.broadcast_to(h, head.shape[:-1])
 
   def act(params, obs, key, std):

@@ -4,23 +4,32 @@
     states = trainer.init(key)                      # one SeedState per seed (vmapped)
     for t0 in range(0, total, trainer.chunk_steps):  # Python: progress, logs, checkpoints
       states, metrics = trainer.chunk(states, t0)   # lax.scan over steps, vmap over seeds
-    s_e, distance = trainer.evaluate(states, key)   # per seed
+    s_e, distance = trainer.evaluate(states, key)   # per seed, outside the schedule
 
 Inside a chunk the global step ``t`` is the scan's input and is not batched over seeds, so
-every horizon gate in ``agent.step`` stays a real branch (SPEC section 6). ``metrics`` are the
-per-seed means over the chunk of the agent's per-step metrics.
+every horizon gate in ``agent.step`` stays a real branch (SPEC section 6). ``metrics`` are per
+seed, reduced over the chunk: a level's metrics (``low/...``, ``top/...``) are averaged over the
+steps where that level updated (``<level>/updated`` counts them), ``count/<mode>`` are summed
+(env steps run in each mode), the rest are averaged over all steps.
+
+``chunk`` donates its input states (the buffers are updated in place): pass it states from
+``init``, a previous ``chunk`` or a checkpoint, and do not reuse them after the call.
+
+With several devices the seed axis is split across them (``jax.shard_map`` over a 1-D mesh
+``seeds``): each device runs its own seeds, with no communication; ``num_seeds`` must be a
+multiple of the device count.
 """
 
 from __future__ import annotations
 
 import dataclasses
-from typing import Callable
+from typing import Callable, Sequence
 
 import jax
 import jax.numpy as jp
+from jax.sharding import Mesh, NamedSharding, PartitionSpec as P
 
 from nonmono_jax import agent as agent_lib
-from nonmono_jax import evaluate as evaluate_lib
 
 
 @dataclasses.dataclass(frozen=True)
@@ -28,32 +37,58 @@ class Trainer:
   agent: agent_lib.Agent
   num_seeds: int
   chunk_steps: int
+  mesh: Mesh
   init: Callable
   chunk: Callable
   evaluate: Callable
 
 
+def reduce_chunk(metrics: dict) -> dict:
+  """Per-step metrics (leading time axis) -> one value per seed (see the module doc)."""
+  out = {}
+  for name, m in metrics.items():
+    level = name.split("/")[0]
+    flag = metrics.get(f"{level}/updated")
+    if name.startswith("count/") or name.endswith("/updated") or name == "switch/switches":
+      out[name] = m.sum(axis=0)
+    elif flag is not None:
+      out[name] = (m * flag).sum(axis=0) / jp.maximum(flag.sum(axis=0), 1.0)
+    else:
+      out[name] = m.mean(axis=0)
+  return out
+
+
 def make_trainer(env, config: agent_lib.AgentConfig, num_seeds: int, chunk_steps: int,
-                 eval_episodes: int = 50) -> Trainer:
+                 devices: Sequence[jax.Device] | None = None) -> Trainer:
   """Jitted ``init(key)``, ``chunk(states, t0)`` and ``evaluate(states, key)``."""
-  for name, v in (("num_seeds", num_seeds), ("chunk_steps", chunk_steps),
-                  ("eval_episodes", eval_episodes)):
+  for name, v in (("num_seeds", num_seeds), ("chunk_steps", chunk_steps)):
     if v < 1:
       raise ValueError(f"{name} must be >= 1, got {v}")
+  devices = list(devices or jax.devices())
+  if num_seeds % len(devices):
+    raise ValueError(f"num_seeds ({num_seeds}) must be a multiple of the device count "
+                     f"({len(devices)})")
   agent = agent_lib.make_agent(env, config)
+  mesh = Mesh(devices, ("seeds",))
+  seeds = NamedSharding(mesh, P("seeds"))
+
+  def local_chunk(states, t0):
+    body = lambda st, t: jax.vmap(agent.step, in_axes=(0, None))(st, t)
+    states, metrics = jax.lax.scan(body, states, t0 + jp.arange(chunk_steps))
+    return states, reduce_chunk(metrics)
+
+  def local_evaluate(states, key):
+    return jax.vmap(agent.evaluate, in_axes=(0, 0, None))(
+        states.low.params, states.middle.params, key)
+
+  shard = lambda f, in_specs: jax.shard_map(f, mesh=mesh, in_specs=in_specs,
+                                             out_specs=P("seeds"), check_vma=False)
 
   def init(key):
     return jax.vmap(agent.init)(jax.random.split(key, num_seeds))
 
-  def chunk(states, t0):
-    body = lambda st, t: jax.vmap(agent.step, in_axes=(0, None))(st, t)
-    states, metrics = jax.lax.scan(body, states, t0 + jp.arange(chunk_steps))
-    return states, jax.tree.map(lambda m: m.mean(axis=0), metrics)
-
-  def evaluate(states, key):
-    return jax.vmap(lambda lo, mi: evaluate_lib.success_rate(agent, env, lo, mi, key,
-                                                             eval_episodes))(
-        states.low.params, states.middle.params)
-
-  return Trainer(agent=agent, num_seeds=num_seeds, chunk_steps=chunk_steps,
-                 init=jax.jit(init), chunk=jax.jit(chunk), evaluate=jax.jit(evaluate))
+  return Trainer(
+      agent=agent, num_seeds=num_seeds, chunk_steps=chunk_steps, mesh=mesh,
+      init=jax.jit(init, out_shardings=seeds),
+      chunk=jax.jit(shard(local_chunk, (P("seeds"), P())), donate_argnums=0),
+      evaluate=jax.jit(shard(local_evaluate, (P("seeds"), P()))))

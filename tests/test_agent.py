@@ -1,4 +1,10 @@
-"""The agent step (HIRO's two levels so far): invariants over a short vmapped run."""
+"""The agent step of every method: invariants over a short vmapped run (Algorithm 1's schedule).
+
+One small program per switch kind (HIRO, ours, Ref:Uniform, Ref:PPO), each compiled once per
+session; the ablations differ from ours only in the Top's reward and loss (``test_top.py``).
+"""
+
+import dataclasses
 
 import jax
 import jax.numpy as jp
@@ -7,103 +13,246 @@ import pytest
 
 import envs
 from nonmono_jax import agent as agent_lib
-from nonmono_jax import td3
+from nonmono_jax import hierarchy, homeostasis, methods, ppo, td3, train
+from nonmono_jax.config import AgentConfig, TopConfig
 
-C = 5
-WARMUP = 60
-STEPS = 100
+C, HORIZON, TOP_EVERY, MID_PPO_EVERY = 5, 25, 50, 15
+WARMUP, STARTING, STEPS, EPISODE = 100, 100, 500, 100
+ENVS, SEEDS = 2, 3
+EXPLORE = 20
+
+_small = td3.TD3Config(hidden=(16, 16), batch_size=8, buffer_size=2000)
+_ppo = ppo.PPOConfig(hidden=(16, 16))
 
 
-def _config():
-  small = td3.TD3Config(hidden=(16, 16), batch_size=8, buffer_size=500)
-  return agent_lib.AgentConfig(c=C, goal_range=(4.0, 4.0, 0.0), warmup_steps=WARMUP,
-                               low=small, middle=small)
+def small_config(method: str, **overrides) -> AgentConfig:
+  base = methods.make_config(method, "PointPush")
+  fields = dict(
+      c=C, warmup_steps=WARMUP, middle_ppo_every=MID_PPO_EVERY, eval_every=100,
+      eval_episodes=2, num_envs=ENVS,
+      top=dataclasses.replace(base.top, horizon=HORIZON, train_every=TOP_EVERY,
+                              starting_steps=STARTING,
+                              ppo=dataclasses.replace(_ppo, discrete=True)),
+      homeostasis=dataclasses.replace(base.homeostasis, rho=0.05, explore_steps=EXPLORE, k=C),
+      low=_small, middle=dataclasses.replace(_small, target_smoothing=base.middle.target_smoothing),
+      middle_ppo=_ppo)
+  fields.update(overrides)
+  return dataclasses.replace(base, **fields)
+
+
+class Run:
+  """A method's short run: states at 0 / end of warm-up / end, and per-step records."""
+
+  def __init__(self, method):
+    self.env = envs.make("PointPush", episode_length=EPISODE)
+    self.config = small_config(method)
+    self.agent = agent_lib.make_agent(self.env, self.config)
+    ag = self.agent
+
+    def body(st, t):
+      mode = st.mode
+      left = st.trigger.explore_left if st.trigger is not None else jp.zeros_like(mode)
+      st, m = jax.vmap(ag.step, in_axes=(0, None))(st, t)
+      return st, (m, mode, left)
+
+    @jax.jit
+    def go(keys):
+      start = jax.vmap(ag.init)(keys)
+      mid, r1 = jax.lax.scan(body, start, jp.arange(WARMUP))
+      end, r2 = jax.lax.scan(body, mid, WARMUP + jp.arange(STEPS - WARMUP))
+      return start, mid, end, jax.tree.map(lambda a, b: jp.concatenate([a, b]), r1, r2)
+
+    self.go = go
+    self.keys = jax.random.split(jax.random.PRNGKey(0), SEEDS)
+    self.start, self.mid, self.end, (metrics, self.modes, self.left) = go(self.keys)
+    self.metrics = jax.tree.map(np.asarray, metrics)
+    self.modes, self.left = np.asarray(self.modes), np.asarray(self.left)  # (T, seeds, envs)
+
+
+_runs = {}
 
 
 @pytest.fixture(scope="module")
-def run():
-  env = envs.make("PointMaze", episode_length=50)
-  ag = agent_lib.make_agent(env, _config())
-
-  @jax.jit
-  def go(keys):
-    states = jax.vmap(ag.init)(keys)
-    body = lambda st, t: jax.vmap(ag.step, in_axes=(0, None))(st, t)
-    mid, m1 = jax.lax.scan(body, states, jp.arange(WARMUP))
-    end, m2 = jax.lax.scan(body, mid, WARMUP + jp.arange(STEPS - WARMUP))
-    return states, mid, end, jax.tree.map(lambda a, b: jp.concatenate([a, b]), m1, m2)
-
-  keys = jax.random.split(jax.random.PRNGKey(0), 3)
-  return ag, env, go, keys, go(keys)
+def runs():
+  def get(method):
+    if method not in _runs:
+      _runs[method] = Run(method)
+    return _runs[method]
+  return get
 
 
 def _same(a, b):
   return all(jax.tree.leaves(jax.tree.map(lambda x, y: bool(jp.all(x == y)), a, b)))
 
 
-def test_buffers_fill_one_low_transition_per_step_and_one_middle_per_segment(run):
-  _, _, _, _, (_, _, end, _) = run
-  np.testing.assert_array_equal(end.low_buffer.size, STEPS)
-  np.testing.assert_array_equal(end.middle_buffer.size, STEPS // C)
+ALL = ("hiro", "ours", "ref-uniform", "ref-ppo")
 
 
-def test_no_updates_during_warmup_then_both_levels_learn(run):
-  _, _, _, _, (start, mid, end, metrics) = run
-  assert _same(start.low.params, mid.low.params) and _same(start.middle.params, mid.middle.params)
-  assert not _same(mid.low.params.critic, end.low.params.critic)
-  assert not _same(mid.middle.params.critic, end.middle.params.critic)
-  assert not _same(mid.middle.params.actor, end.middle.params.actor)
-  low_loss = np.asarray(metrics["low/critic_loss"])
-  assert np.all(low_loss[:WARMUP] == 0) and np.all(low_loss[WARMUP:] > 0)
-  mid_loss = np.asarray(metrics["middle/critic_loss"])[WARMUP:, 0]
-  assert np.count_nonzero(mid_loss) == (STEPS - WARMUP) // C  # once per Middle horizon
+@pytest.mark.parametrize("method", ALL)
+def test_mode_counts_add_up_to_steps_after_warmup(runs, method):
+  r = runs(method)
+  np.testing.assert_array_equal(r.end.mode_steps.sum(-1), (STEPS - WARMUP) * ENVS)
+  for j, name in enumerate(hierarchy.MODES):  # the per-step counts are the modes in effect
+    np.testing.assert_array_equal(r.metrics[f"count/{name}"][WARMUP:].sum(0),
+                                  r.end.mode_steps[:, j])
+    np.testing.assert_array_equal(r.metrics[f"count/{name}"][WARMUP:],
+                                  (r.modes[WARMUP:] == j).sum(-1))
 
 
-def test_middle_transitions_hold_whole_segments(run):
-  _, _, _, _, (_, _, end, _) = run
-  buf = jax.tree.map(lambda x: np.asarray(x[0]), end.middle_buffer.data)
-  tr = buf["transition"]
-  n = STEPS // C
-  np.testing.assert_allclose(buf["states"][:n, 0], tr.obs[:n])
-  np.testing.assert_allclose(buf["states"][:n, -1], tr.next_obs[:n])
-  # A segment's last state is the next one's first, except across an episode reset.
-  same = np.all(np.isclose(buf["states"][1:n, 0], buf["states"][:n - 1, -1]), axis=-1)
-  assert same.sum() == n - 1 - (STEPS // 50 - 1)
+@pytest.mark.parametrize("method", ALL)
+def test_buffers_and_update_clocks(runs, method):
+  r = runs(method)
+  np.testing.assert_array_equal(r.end.low_buffer.size, STEPS * ENVS)
+  np.testing.assert_array_equal(r.end.middle_buffer.size, STEPS // C * ENVS)
+  assert _same(r.start.low.params, r.mid.low.params)  # nothing learns in warm-up
+  assert _same(r.start.middle.params, r.mid.middle.params)
+  assert not _same(r.mid.low.params.critic, r.end.low.params.critic)
+  assert not _same(r.mid.middle.params.actor, r.end.middle.params.actor)
+  live = STEPS - WARMUP
+  ticks = lambda every: sum(t % every == every - 1 for t in range(WARMUP, STEPS))
+  m = r.metrics
+  assert np.all(m["low/updated"][:WARMUP] == 0) and np.all(m["low/updated"][WARMUP:] == 1)
+  assert np.all(m["low/critic_loss"][WARMUP:] > 0)
+  np.testing.assert_array_equal(m["middle/updated"].sum(0), ticks(C))
+  np.testing.assert_array_equal(m["eval/updated"].sum(0), live // 100)
+  np.testing.assert_array_equal(r.end.s_e, m["eval/success"][-1])
+  if r.config.uses_middle_ppo:
+    np.testing.assert_array_equal(m["middle_ppo/updated"].sum(0), ticks(MID_PPO_EVERY))
+    assert not _same(r.mid.middle_ppo.params, r.end.middle_ppo.params)
+  else:
+    assert r.end.middle_ppo is None and "middle_ppo/updated" not in m
+  if r.config.switch == "top":
+    np.testing.assert_array_equal(m["top/updated"].sum(0), ticks(TOP_EVERY))
+    np.testing.assert_array_equal(m["horizon/updated"].sum(0), STEPS // HORIZON)
+    assert not _same(r.mid.top.params, r.end.top.params)
+  else:
+    assert r.end.top is None and "top/updated" not in m
 
 
-def test_episode_clock_and_gates_are_unbatched(run):
-  ag, env, _, keys, (_, _, end, _) = run
-  np.testing.assert_array_equal(end.env.steps, STEPS % env.episode_length)
-  states = jax.vmap(ag.init)(keys)
-  jaxpr = str(jax.make_jaxpr(jax.vmap(ag.step, in_axes=(0, None)))(states, jp.array(0)))
-  assert jaxpr.count("cond[") >= 4  # segment end, episode reset, low and middle updates
+def test_hiro_never_leaves_td3(runs):
+  r = runs("hiro")
+  assert np.all(r.modes == hierarchy.TD3)
+  assert r.config.middle_goal_noise == 1.0 and r.config.middle.target_smoothing
 
 
-def test_seeds_differ_and_runs_repeat(run):
-  _, _, go, keys, (_, _, end, _) = run
-  w = jax.tree.leaves(end.low.params.actor)[0]
+def test_ours_starts_in_random_then_the_top_chooses(runs):
+  r = runs("ours")
+  assert r.config.middle_goal_noise == 0.0 and not r.config.middle.target_smoothing
+  assert np.all(r.modes[:WARMUP + STARTING] == hierarchy.RANDOM)
+  later = r.modes[WARMUP + STARTING:]
+  assert set(np.unique(later)) == {0, 1, 2}
+  # The mode changes only at Top horizon boundaries.
+  changed = np.any(r.modes[1:] != r.modes[:-1], axis=(1, 2))
+  assert np.all(np.nonzero(changed)[0] % HORIZON == HORIZON - 1)
+  # Top transitions: the rollout holds the latest horizons, in time order, with their modes.
+  last = r.modes[STEPS - TOP_EVERY::HORIZON]  # (rollout, seeds, envs)
+  np.testing.assert_array_equal(np.moveaxis(np.asarray(r.end.top_rollout.action), 2, 0), last)
+
+
+@pytest.mark.parametrize("method,explore", [("ref-uniform", hierarchy.RANDOM),
+                                            ("ref-ppo", hierarchy.PPO)])
+def test_ref_switches_only_through_the_trigger_and_explores_exactly(runs, method, explore):
+  r = runs(method)
+  assert set(np.unique(r.modes)) == {hierarchy.TD3, explore}
+  np.testing.assert_array_equal(r.modes == explore, r.left > 0)
+  t = np.arange(STEPS - 1)
+  episode_start = ((t + 1) % EPISODE == 0)[:, None, None]
+  left, nxt = r.left[:-1], r.left[1:]
+  # Each episode starts with a whole explore period (X); otherwise the counter runs down ...
+  assert np.all(nxt[np.broadcast_to(episode_start, nxt.shape)] == EXPLORE)
+  running = (left > 0) & ~episode_start
+  np.testing.assert_array_equal(nxt[running], left[running] - 1)
+  # ... and leaves 0 only through a switch of the trigger, to a full period.
+  jumps = (left == 0) & (nxt > 0) & ~episode_start
+  assert np.all(nxt[jumps] == EXPLORE)
+  live = (left == 0) & ~episode_start
+  switches = r.metrics["switch/switches"][:-1][~episode_start[:, 0, 0]]  # a reset overrides
+  np.testing.assert_array_equal(switches.sum(), jumps.sum())
+  assert jumps[WARMUP:].sum() > 0 and jumps[:WARMUP].sum() == 0  # the trigger fires, after warm-up
+  assert live.sum() > jumps.sum()
+
+
+@pytest.mark.parametrize("method", ALL)
+def test_seeds_differ_and_runs_repeat(runs, method):
+  r = runs(method)
+  w = jax.tree.leaves(r.end.low.params.actor)[0]
   assert not np.allclose(w[0], w[1])
-  again = go(keys)[2]
-  assert _same(end.low.params, again.low.params) and _same(end.env.obs, again.env.obs)
+  again = r.go(r.keys)[2]
+  assert _same(r.end.low.params, again.low.params) and _same(r.end.env.obs, again.env.obs)
+  assert _same(r.end.mode_steps, again.mode_steps)
+
+
+def test_gates_stay_branches_under_vmap(runs):
+  """Each horizon gate is a ``cond`` in the vmapped step's jaxpr, not a select of both sides."""
+  r = runs("ours")
+  states = jax.vmap(r.agent.init)(r.keys)
+  jaxpr = str(jax.make_jaxpr(jax.vmap(r.agent.step, in_axes=(0, None)))(states, jp.array(0)))
+  # episode reset, segment end, Top horizon, Low, Middle, Middle PPO, Top PPO, evaluation, and
+  # the delayed TD3 actors
+  assert jaxpr.count("cond[") >= 10, jaxpr.count("cond[")
+  batched = str(jax.make_jaxpr(jax.vmap(r.agent.step))(states, jp.zeros(SEEDS, jp.int32)))
+  assert batched.count("cond[") < jaxpr.count("cond[")  # a batched clock would lose them
+
+
+def test_every_method_builds_from_its_preset():
+  env = envs.make("PointPush", episode_length=EPISODE)
+  for method in methods.METHODS:
+    config = small_config(method)
+    agent_lib.make_agent(env, config)
+  ours = methods.make_config("ours", "AntFall")
+  assert ours.top.alpha == (-0.2, -0.2, 0.7) and ours.top.s_o == (0.6, 0.6, 0.9)
+  assert methods.make_config("ref-ppo", "AntPush").homeostasis.rho == 0.01
+  assert methods.make_config("ref-uniform", "AntPush").homeostasis.rho == 0.0001
+  assert methods.make_config("ref-uniform", "AntPush").explore_mode == "random"
+  nr = methods.make_config("ours-no-reward-mod", "AntPush").top
+  nl = methods.make_config("ours-no-loss-mod", "AntPush").top
+  nm = methods.make_config("ours-no-mods", "AntPush").top
+  assert (nr.reward_mod, nr.loss_mod, nl.reward_mod, nl.loss_mod) == (False, True, True, False)
+  assert not nm.reward_mod and not nm.loss_mod
+  push = methods.make_config("ours", "AntPush")
+  assert push.warmup_steps == 100_000 and push.top.starting_steps == 250_000
+  assert push.c == 10 and push.top.horizon == 50 and push.low.hidden == (300, 300)
 
 
 def test_bad_config_fails_before_compiling():
   with pytest.raises(ValueError, match="goal_range"):
-    agent_lib.AgentConfig(goal_range=(1.0, 1.0))
+    AgentConfig(goal_range=(1.0, 1.0))
+  with pytest.raises(ValueError, match="switch must be one of"):
+    AgentConfig(switch="bandit")
+  with pytest.raises(ValueError, match="top.alpha"):
+    TopConfig(alpha=(0.0, 0.4))
+  with pytest.raises(ValueError, match="top.s_o"):
+    TopConfig(s_o=(0.6, 0.6, 1.5))
+  with pytest.raises(ValueError, match="top.horizon"):
+    TopConfig(horizon=-50)
   with pytest.raises(ValueError, match="multiple of c"):
-    agent_lib.make_agent(envs.make("PointMaze", episode_length=55), agent_lib.AgentConfig())
+    AgentConfig(c=7)
+  with pytest.raises(ValueError, match="rho"):
+    homeostasis.HomeostasisConfig(rho=2.0)
+  with pytest.raises(ValueError, match="method must be one of"):
+    methods.make_config("sac", "AntPush")
+  with pytest.raises(ValueError, match="task must be one of"):
+    methods.make_config("ours", "HalfCheetah")
+  with pytest.raises(ValueError, match="unknown AgentConfig field"):
+    methods.make_config("ours", "AntPush", horizon=3)
+  with pytest.raises(ValueError, match="multiple of top.horizon"):
+    agent_lib.make_agent(envs.make("PointMaze", episode_length=60), AgentConfig())
 
 
-def test_trainer_chunks_match_the_plain_scan(run):
+def test_trainer_chunks_match_the_plain_scan(runs):
   """train.make_trainer's chunks are the same program as scanning agent.step by hand."""
-  from nonmono_jax import train
-
-  _, env, _, _, (_, _, end, _) = run
-  trainer = train.make_trainer(env, _config(), num_seeds=3, chunk_steps=50)
-  states = jax.vmap(trainer.agent.init)(jax.random.split(jax.random.PRNGKey(0), 3))
-  for t0 in (0, 50):
+  r = runs("ours")
+  trainer = train.make_trainer(r.env, r.config, num_seeds=SEEDS, chunk_steps=250)
+  states = jax.jit(jax.vmap(trainer.agent.init))(r.keys)  # chunk donates: distinct buffers
+  for t0 in (0, 250):
     states, metrics = trainer.chunk(states, t0)
-  assert metrics["success"].shape == (3,)
-  np.testing.assert_allclose(states.env.obs, end.env.obs, rtol=1e-5, atol=1e-5)
+  assert metrics["success"].shape == (SEEDS,)
+  np.testing.assert_allclose(states.env.obs, r.end.env.obs, rtol=1e-5, atol=1e-5)
+  np.testing.assert_array_equal(states.mode_steps, r.end.mode_steps)
+  # Chunk metrics: counts summed, level metrics averaged where the level updated.
+  np.testing.assert_array_equal(metrics["count/TD3"], r.metrics["count/TD3"][250:].sum(0))
+  flag = r.metrics["top/updated"][250:]
+  np.testing.assert_allclose(metrics["top/loss"],
+                             (r.metrics["top/loss"][250:] * flag).sum(0) / flag.sum(0), rtol=1e-4)
   with pytest.raises(ValueError, match="num_seeds"):
-    train.make_trainer(env, _config(), num_seeds=0, chunk_steps=10)
+    train.make_trainer(r.env, r.config, num_seeds=0, chunk_steps=10)

@@ -1,0 +1,140 @@
+"""The agent's configuration: frozen dataclasses whose defaults are SPEC's numbers (Ant Push, ours).
+
+    AgentConfig            the hierarchy, the method's switch, the schedule, the learners
+      .top: TopConfig      Top PPO: horizon, alpha, S_O, the starting mode, loss modification
+      .homeostasis         Pislar et al.'s trigger (Ref:Uniform / Ref:PPO): rho, explore period
+      .low, .middle        TD3Config of the Low and Middle TD3
+      .middle_ppo          PPOConfig of the Middle PPO (Gaussian goals, decaying std)
+
+A method (``methods.py``) is one of these configurations; every value is checked here, before
+anything compiles, with a message that names the field.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+from nonmono_jax import hierarchy, homeostasis, ppo, td3
+
+SWITCHES = ("none", "top", "homeostasis")  # HIRO / ours / Ref:Uniform and Ref:PPO
+EXPLORE_MODES = ("ppo", "random")  # the explore mode of the homeostasis switch
+RANDOM_GOALS = ("uniform", "gaussian")  # ours uniform; the paper's code clip(randn * range)
+
+
+def _check_triple(name, values, lo=None, hi=None):
+  if len(values) != len(hierarchy.MODES):
+    raise ValueError(f"{name} must have {len(hierarchy.MODES)} entries "
+                     f"(one per mode {', '.join(hierarchy.MODES)}), got {values}")
+  for v in values:
+    if (lo is not None and v < lo) or (hi is not None and v > hi):
+      raise ValueError(f"{name} entries must be in [{lo}, {hi}], got {values}")
+
+
+@dataclasses.dataclass(frozen=True)
+class TopConfig:
+  """The Top level: PPO over g_expl_mode in (TD3, PPO, RANDOM), one choice per ``horizon``."""
+
+  horizon: int = 50  # Top horizon, env steps
+  alpha: tuple[float, float, float] = (0.0, 0.4, 0.7)  # R_final = R_m + alpha[m] R_m
+  s_o: tuple[float, float, float] = (0.6, 0.6, 0.6)  # done_m = S_O_m >= S_O[m]
+  s_o_start: float = 0.9  # S_O during the starting mode
+  starting_steps: int = 250_000  # after warm-up, the Top is forced to RANDOM for this long
+  train_every: int = 400  # Top PPO trains on the train_every / horizon latest Top transitions
+  reward_mod: bool = True  # False: alpha = 0 (ablation)
+  loss_mod: bool = True  # False: no S_E term in the Top loss (ablation)
+  ppo: ppo.PPOConfig = ppo.PPOConfig(discrete=True)
+
+  def __post_init__(self):
+    object.__setattr__(self, "alpha", tuple(float(a) for a in self.alpha))
+    object.__setattr__(self, "s_o", tuple(float(s) for s in self.s_o))
+    if self.horizon < 1:
+      raise ValueError(f"top.horizon must be >= 1, got {self.horizon}")
+    _check_triple("top.alpha", self.alpha, lo=-1.0)
+    _check_triple("top.s_o", self.s_o, lo=0.0, hi=1.0)
+    if not 0 <= self.s_o_start <= 1:
+      raise ValueError(f"top.s_o_start must be in [0, 1], got {self.s_o_start}")
+    if self.starting_steps < 0:
+      raise ValueError(f"top.starting_steps must be >= 0, got {self.starting_steps}")
+    if self.train_every < 1 or self.train_every % self.horizon:
+      raise ValueError(f"top.train_every must be a positive multiple of top.horizon "
+                       f"({self.horizon}), got {self.train_every}")
+    if not self.ppo.discrete:
+      raise ValueError("top.ppo must be discrete (the Top picks one of 3 modes)")
+
+  @property
+  def rollout_length(self) -> int:
+    return self.train_every // self.horizon
+
+
+@dataclasses.dataclass(frozen=True)
+class AgentConfig:
+  """The whole agent; the defaults are ours on Ant Push (SPEC sections 2 and 3)."""
+
+  switch: str = "top"  # "none" (HIRO), "top" (ours), "homeostasis" (Ref:*)
+  explore_mode: str = "ppo"  # homeostasis only: the explore mode, "ppo" or "random"
+  random_goal: str = "uniform"
+  c: int = 10  # Middle horizon
+  goal_range: tuple[float, float, float] = (10.0, 10.0, 0.5)
+  warmup_steps: int = 100_000  # random low actions and goals, no updates
+  middle_goal_noise: float = 0.0  # Gaussian noise on TD3 goals: HIRO 1, ours 0
+  middle_ppo_every: int = 30  # Middle PPO trains on its latest middle_ppo_every / c transitions
+  eval_every: int = 10_000  # S_E of Middle TD3 + Low TD3, every eval_every env steps
+  eval_episodes: int = 50
+  num_envs: int = 1  # envs per seed (paper: 1)
+  low_updates: int = 1  # Low TD3 updates per (vector) env step
+  middle_updates: int = 1  # Middle TD3 updates per Middle horizon
+  top: TopConfig = TopConfig()
+  homeostasis: homeostasis.HomeostasisConfig = homeostasis.HomeostasisConfig()
+  low: td3.TD3Config = td3.TD3Config()
+  middle: td3.TD3Config = td3.TD3Config(target_smoothing=False)
+  middle_ppo: ppo.PPOConfig = ppo.PPOConfig()
+
+  def __post_init__(self):
+    object.__setattr__(self, "goal_range", tuple(float(g) for g in self.goal_range))
+    for name, allowed in (("switch", SWITCHES), ("explore_mode", EXPLORE_MODES),
+                          ("random_goal", RANDOM_GOALS)):
+      if getattr(self, name) not in allowed:
+        raise ValueError(f"{name} must be one of {', '.join(allowed)}; "
+                         f"got {getattr(self, name)!r}")
+    if self.c < 1:
+      raise ValueError(f"c must be >= 1, got {self.c}")
+    if len(self.goal_range) != hierarchy.GOAL_SIZE:
+      raise ValueError(f"goal_range must have {hierarchy.GOAL_SIZE} entries (x, y, z), "
+                       f"got {self.goal_range}")
+    if any(r < 0 for r in self.goal_range):
+      raise ValueError(f"goal_range must be >= 0, got {self.goal_range}")
+    for name in ("warmup_steps",):
+      if getattr(self, name) < 0:
+        raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
+    for name in ("eval_every", "eval_episodes", "num_envs", "low_updates", "middle_updates"):
+      if getattr(self, name) < 1:
+        raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
+    if self.middle_goal_noise < 0:
+      raise ValueError(f"middle_goal_noise must be >= 0, got {self.middle_goal_noise}")
+    if self.middle_ppo_every < 1 or self.middle_ppo_every % self.c:
+      raise ValueError(f"middle_ppo_every must be a positive multiple of c ({self.c}), "
+                       f"got {self.middle_ppo_every}")
+    if self.top.horizon % self.c:
+      raise ValueError(f"top.horizon ({self.top.horizon}) must be a multiple of c ({self.c})")
+    if self.middle_ppo.discrete:
+      raise ValueError("middle_ppo must be Gaussian (discrete=False)")
+
+  @property
+  def uses_middle_ppo(self) -> bool:
+    return self.switch == "top" or (self.switch == "homeostasis" and self.explore_mode == "ppo")
+
+  @property
+  def middle_rollout_length(self) -> int:
+    return self.middle_ppo_every // self.c
+
+  @property
+  def explore_mode_index(self) -> int:
+    return hierarchy.PPO if self.explore_mode == "ppo" else hierarchy.RANDOM
+
+  def check_env(self, env) -> None:
+    """The env's episode must hold whole Middle (and Top) horizons."""
+    horizon = self.top.horizon if self.switch == "top" else self.c
+    name = "top.horizon" if self.switch == "top" else "c"
+    if env.episode_length % horizon:
+      raise ValueError(f"episode_length ({env.episode_length}) must be a multiple of {name} "
+                       f"({horizon}): horizons end with episodes")

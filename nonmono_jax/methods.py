@@ -1,0 +1,113 @@
+"""The paper's methods as configurations of one agent, with presets per task.
+
+    config = methods.make_config("ours", "AntPush")        # SPEC's numbers for that task
+    config = methods.make_config("ref-ppo", "PointPush", warmup_steps=5_000)   # + overrides
+
+| method              | switch       | Middle sub-policies        | Top loss / reward mods |
+|---------------------|--------------|----------------------------|------------------------|
+| ours                | top          | TD3 (no noise), PPO, RANDOM| both                   |
+| hiro                | none         | TD3 + N(0, 1) goal noise   | -                      |
+| ref-uniform         | homeostasis  | TD3 / RANDOM               | -                      |
+| ref-ppo             | homeostasis  | TD3 / PPO                  | -                      |
+| ours-no-reward-mod  | top          | as ours                    | alpha = 0              |
+| ours-no-loss-mod    | top          | as ours                    | no S_E term            |
+| ours-no-mods        | top          | as ours                    | neither                |
+
+HIRO keeps its Middle TD3 target smoothing and Gaussian goal noise; ours and the Ref methods
+have neither (exploration comes from the modes). The Ref methods' TD3 goals are noiseless too
+(their explore mode is the exploration).
+
+Task presets: the Ant tasks are SPEC's (alpha, S_O, rho, 1000-step episodes, 3.15M / 6M steps).
+The point tasks are the same methods at a CPU scale: 64-64 networks with faster actors, a
+2K-step warm-up, a 10K-step starting mode, 100-step episodes and evaluation every 2K steps.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+from nonmono_jax import homeostasis, ppo, td3
+from nonmono_jax.config import AgentConfig, TopConfig
+
+METHODS = ("ours", "hiro", "ref-uniform", "ref-ppo", "ours-no-reward-mod", "ours-no-loss-mod",
+           "ours-no-mods")
+
+
+@dataclasses.dataclass(frozen=True)
+class TaskPreset:
+  """What a task fixes: its env, length of training and the paper's per-task numbers."""
+
+  env: str
+  total_steps: int
+  episode_length: int
+  alpha: tuple[float, float, float]
+  s_o: tuple[float, float, float]
+  rho: dict  # method -> homeostasis target rate
+  agent: dict  # AgentConfig overrides (scale of the robot)
+
+
+_ANT = {}
+_POINT_TD3 = td3.TD3Config(hidden=(64, 64), lr_actor=1e-3, buffer_size=50_000)
+_POINT_PPO = ppo.PPOConfig(hidden=(64, 64), std_decay_every=20_000)
+_POINT = {
+    "goal_range": (4.0, 4.0, 0.0), "warmup_steps": 2_000, "eval_every": 2_000,
+    "eval_episodes": 20,
+    "low": dataclasses.replace(_POINT_TD3, expl_noise=0.2),
+    "middle": dataclasses.replace(_POINT_TD3, buffer_size=10_000),
+    "middle_ppo": _POINT_PPO,
+    "top": {"starting_steps": 10_000, "ppo": dataclasses.replace(_POINT_PPO, discrete=True)},
+}
+_PUSH = dict(alpha=(0.0, 0.4, 0.7), s_o=(0.6, 0.6, 0.6),
+             rho={"ref-ppo": 0.01, "ref-uniform": 0.0001})
+_FALL = dict(alpha=(-0.2, -0.2, 0.7), s_o=(0.6, 0.6, 0.9),
+             rho={"ref-ppo": 0.001, "ref-uniform": 0.001})
+
+TASKS = {
+    "AntPush": TaskPreset("AntPush", 3_150_000, 1000, agent=_ANT, **_PUSH),
+    "AntFall": TaskPreset("AntFall", 6_000_000, 1000, agent=_ANT, **_FALL),
+    # Not in the paper: HIRO's sanity check, with Push's numbers.
+    "AntMaze": TaskPreset("AntMaze", 3_150_000, 1000, agent=_ANT, **_PUSH),
+    "PointPush": TaskPreset("PointPush", 100_000, 100, agent=_POINT, **_PUSH),
+    "PointFall": TaskPreset("PointFall", 100_000, 100, agent=_POINT, **_FALL),
+    "PointMaze": TaskPreset("PointMaze", 40_000, 100, agent=_POINT, **_PUSH),
+}
+
+
+def _method_fields(method: str, task: TaskPreset) -> dict:
+  ours = {"switch": "top", "middle_goal_noise": 0.0}
+  if method == "hiro":
+    return {"switch": "none", "middle_goal_noise": 1.0, "smoothing": True}
+  if method in ("ref-uniform", "ref-ppo"):
+    return {"switch": "homeostasis", "middle_goal_noise": 0.0,
+            "explore_mode": "random" if method == "ref-uniform" else "ppo",
+            "rho": task.rho[method]}
+  mods = {"ours": (True, True), "ours-no-reward-mod": (False, True),
+          "ours-no-loss-mod": (True, False), "ours-no-mods": (False, False)}[method]
+  return {**ours, "reward_mod": mods[0], "loss_mod": mods[1]}
+
+
+def make_config(method: str, task: str, **overrides) -> AgentConfig:
+  """The AgentConfig of ``method`` on ``task``; ``overrides`` replace AgentConfig fields."""
+  if method not in METHODS:
+    raise ValueError(f"method must be one of {', '.join(METHODS)}; got {method!r}")
+  if task not in TASKS:
+    raise ValueError(f"task must be one of {', '.join(TASKS)}; got {task!r}")
+  preset = TASKS[task]
+  fields = dict(preset.agent)
+  top_fields = dict(fields.pop("top", {}))
+  m = _method_fields(method, preset)
+  top_fields.update(alpha=preset.alpha, s_o=preset.s_o,
+                    reward_mod=m.pop("reward_mod", True), loss_mod=m.pop("loss_mod", True))
+  middle = fields.get("middle", td3.TD3Config())
+  fields["middle"] = dataclasses.replace(middle, target_smoothing=m.pop("smoothing", False))
+  rho = m.pop("rho", None)
+  if rho is not None:
+    fields["homeostasis"] = homeostasis.HomeostasisConfig(rho=rho)
+  fields.update(m)
+  fields["top"] = TopConfig(**top_fields)
+  unknown = set(overrides) - {f.name for f in dataclasses.fields(AgentConfig)}
+  if unknown:
+    raise ValueError(f"unknown AgentConfig field(s) {sorted(unknown)}; valid: "
+                     f"{', '.join(f.name for f in dataclasses.fields(AgentConfig))}")
+  fields.update(overrides)
+  return AgentConfig(**fields)

@@ -1,0 +1,95 @@
+"""The Top level: PPO over g_expl_mode in (TD3, PPO, RANDOM), one choice per Top horizon.
+
+Per env, over a Top horizon of 50 steps run in mode m (the paper's Algorithm 1):
+
+    R_m += R;  Done_m += success;  Count_m += 1                        (every env step)
+    at the horizon's end:
+      S_O_m   = Done_m / Count_m;   done_m = S_O_m >= S_O[m]          (S_O = 0.9 when starting)
+      R_final = R_m + alpha[m] R_m                                    (alpha = 0 without reward mod)
+      Top rollout <- ((s_0, target), m, log pi_T(m | s_0), R_final, done_m or episode end)
+      m' ~ pi_T(s, target)         (forced to RANDOM in warm-up and in the starting mode)
+    every 400 steps: Top PPO on the 8 latest Top transitions, per-sample loss weights
+      1 + S_E for the explore modes, 1 - S_E for TD3 (1 without the loss modification)
+
+The Top's rollout also ends at an episode's end (its Monte Carlo returns never cross episodes).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Callable
+
+import jax
+import jax.numpy as jp
+from flax import struct
+
+from nonmono_jax import hierarchy, ppo
+from nonmono_jax.config import TopConfig
+
+
+@struct.dataclass
+class Horizon:
+  """One env's current Top horizon: where it started, its mode and its running sums."""
+
+  obs: jax.Array  # (obs + 3,) Top input (s_0, target)
+  mode: jax.Array  # int32 g_expl_mode
+  log_prob: jax.Array  # log pi_T(mode | s_0, target)
+  reward: jax.Array  # R_m
+  done_count: jax.Array  # Done_m
+  count: jax.Array  # Count_m
+
+
+@dataclasses.dataclass(frozen=True)
+class Top:
+  ppo: ppo.PPO
+  start: Callable[..., Horizon]
+  accumulate: Callable[..., Horizon]
+  close: Callable[..., tuple[ppo.Rollout, dict]]
+  init_rollout: Callable[[], ppo.Rollout]
+  update: Callable[..., tuple[ppo.PPOState, dict]]
+
+
+def make_top(obs_size: int, target, config: TopConfig) -> Top:
+  k = hierarchy.GOAL_SIZE
+  target = jp.asarray(target, jp.float32)
+  policy = ppo.make_ppo(obs_size + k, len(hierarchy.MODES), config.ppo)
+  alpha = jp.asarray(config.alpha if config.reward_mod else (0.0,) * 3, jp.float32)
+  s_o = jp.asarray(config.s_o, jp.float32)
+  s_o_start = jp.full((3,), config.s_o_start, jp.float32)
+
+  def start(params, obs, key, forced):
+    """A new horizon from s: m ~ pi_T(s, target), or RANDOM where ``forced``."""
+    x = jp.concatenate([obs, target])
+    sampled, _ = policy.act(params, x, key, None)
+    mode = jp.where(forced, hierarchy.RANDOM, sampled).astype(jp.int32)
+    zero = jp.zeros(())
+    return Horizon(obs=x, mode=mode, log_prob=policy.log_prob(params, x, mode, None),
+                   reward=zero, done_count=zero, count=zero)
+
+  def accumulate(h: Horizon, reward, success):
+    return h.replace(reward=h.reward + reward, done_count=h.done_count + success,
+                     count=h.count + 1)
+
+  def close(h: Horizon, starting, episode_end):
+    """The Top transition of a finished horizon (``starting``: the starting mode's S_O)."""
+    s_o_m = hierarchy.success_ratio(h.done_count, h.count)
+    done_m = hierarchy.top_done(s_o_m, jp.where(starting, s_o_start, s_o), h.mode)
+    r_final = hierarchy.modified_reward(h.reward, alpha, h.mode)
+    step = ppo.Rollout(obs=h.obs, action=h.mode, log_prob=h.log_prob, reward=r_final,
+                       done=jp.maximum(done_m, jp.asarray(episode_end, jp.float32)))
+    return step, {"s_o_m": s_o_m, "done_m": done_m, "r_final": r_final}
+
+  def init_rollout():
+    h = Horizon(obs=jp.zeros(obs_size + k), mode=jp.zeros((), jp.int32), log_prob=jp.zeros(()),
+                reward=jp.zeros(()), done_count=jp.zeros(()), count=jp.zeros(()))
+    step, _ = close(h, False, False)
+    return jax.tree.map(lambda x: jp.zeros((config.rollout_length,) + x.shape, x.dtype), step)
+
+  def update(state: ppo.PPOState, rollout: ppo.Rollout, s_e):
+    """Top PPO on the rollout, with the S_E loss modification unless it is switched off."""
+    weights = (ppo.top_loss_weights(rollout.action, s_e, hierarchy.TD3) if config.loss_mod
+               else jp.ones(rollout.reward.shape))
+    return policy.update(state, rollout, None, weights)
+
+  return Top(ppo=policy, start=start, accumulate=accumulate, close=close,
+             init_rollout=init_rollout, update=update)
