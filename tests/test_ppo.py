@@ -217,3 +217,27 @@ def test_update_vmaps_over_seeds():
   for leaf in jax.tree.leaves(new.params):
     assert leaf.shape[0] == 2 and not np.allclose(leaf[0], leaf[1])
   assert not _leaves_equal(new.params, states.params)
+
+
+def test_monte_carlo_returns_per_env_rows():
+  """(envs, N) rollouts: returns run along each row, normalised over all of them."""
+  rewards = jp.array([[1.0, 2.0, 3.0], [0.0, -1.0, 4.0]])
+  dones = jp.array([[0, 1, 0], [0, 0, 0]])
+  raw = ppo.monte_carlo_returns(rewards, dones, 0.5, normalize=False)
+  for row in range(2):
+    np.testing.assert_allclose(
+        raw[row], ppo.monte_carlo_returns(rewards[row], dones[row], 0.5, normalize=False))
+  np.testing.assert_allclose(raw[0], [1 + 0.5 * 2, 2, 3])
+  norm = ppo.monte_carlo_returns(rewards, dones, 0.5)
+  np.testing.assert_allclose(norm, (raw - raw.mean()) / (raw.std(ddof=1) + 1e-7), rtol=1e-5)
+
+
+def test_zero_scale_dimension_is_fixed_and_finite():
+  """A goal range of 0 in a dimension (z for the point robot) pins it at 0, with finite logp."""
+  learner = ppo.make_ppo(5, 3, ppo.PPOConfig(hidden=(8,)), action_scale=jp.array([4.0, 4.0, 0.0]))
+  params = learner.init(jax.random.PRNGKey(0)).params
+  obs = jp.ones(5)
+  a, logp = learner.act(params, obs, jax.random.PRNGKey(1), 0.6)
+  assert a[2] == 0.0 and np.isfinite(logp)
+  two_d = 2 * (0.5 * math.log(2 * math.pi * math.e) + math.log(0.6 * 4.0))
+  np.testing.assert_allclose(learner.entropy(params, obs, 0.6), two_d, rtol=1e-6)

@@ -1,0 +1,52 @@
+"""The seed axis sharded across devices gives the same training as one device.
+
+Runs in a subprocess because the host-device count (``XLA_FLAGS``) is fixed when jax starts;
+the session's jax has one CPU device (``conftest.py``).
+"""
+
+import os
+import subprocess
+import sys
+import textwrap
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+SCRIPT = textwrap.dedent("""
+    import os
+    os.environ["XLA_FLAGS"] = "--xla_force_host_platform_device_count=2"
+    import jax, numpy as np
+    jax.config.update("jax_compilation_cache_dir", os.environ["CACHE"])
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
+    import envs
+    from nonmono_jax import methods, td3, train
+    assert jax.device_count() == 2
+    env = envs.make("PointMaze", episode_length=20)
+    small = td3.TD3Config(hidden=(16, 16), batch_size=8, buffer_size=200)
+    config = methods.make_config("hiro", "PointMaze", c=5, warmup_steps=20, eval_every=20,
+                                 eval_episodes=2, low=small, middle=small)
+    out = {}
+    for name, devices in (("two", jax.devices()), ("one", jax.devices()[:1])):
+      trainer = train.make_trainer(env, config, num_seeds=4, chunk_steps=20, devices=devices)
+      states = trainer.init(jax.random.PRNGKey(0))
+      for t0 in (0, 20, 40):
+        states, metrics = trainer.chunk(states, t0)
+      out[name] = (states, metrics)
+      print(name, "devices holding the seeds:", len(states.env.obs.sharding.device_set))
+    (a, ma), (b, mb) = out["two"], out["one"]
+    assert len(a.env.obs.sharding.device_set) == 2 and len(b.env.obs.sharding.device_set) == 1
+    assert a.low.params.critic["params"]["dense_0"]["kernel"].shape[0] == 4
+    for x, y in zip(jax.tree.leaves((a.low.params, a.env.obs, ma)),
+                    jax.tree.leaves((b.low.params, b.env.obs, mb))):
+      np.testing.assert_allclose(np.asarray(x), np.asarray(y), rtol=1e-4, atol=1e-5)
+    print("OK")
+""")
+
+
+def test_seed_axis_sharded_on_two_devices_matches_one():
+  cache = os.environ.get("JAX_COMPILATION_CACHE_DIR", os.path.join(ROOT, ".jax_cache"))
+  env = {**os.environ, "CACHE": cache, "PYTHONPATH": ROOT}
+  env.pop("XLA_FLAGS", None)
+  res = subprocess.run([sys.executable, "-c", SCRIPT], cwd=ROOT, env=env, capture_output=True,
+                       text=True, timeout=600)
+  assert res.returncode == 0, res.stdout + res.stderr[-4000:]
+  assert "OK" in res.stdout

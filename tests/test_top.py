@@ -1,0 +1,88 @@
+"""The Top level's transition and update, and what the ablations switch off."""
+
+import dataclasses
+
+import jax
+import jax.numpy as jp
+import numpy as np
+
+from nonmono_jax import hierarchy, methods, ppo
+from nonmono_jax.top import Horizon, make_top
+
+OBS = 4
+TARGET = (0.0, 19.0, 0.5)
+_ppo = ppo.PPOConfig(hidden=(8,), discrete=True)
+
+
+def _top(method):
+  return make_top(OBS, TARGET, dataclasses.replace(methods.make_config(method, "AntPush").top,
+                                                   ppo=_ppo))
+
+
+def _horizon(mode, reward=-100.0, done_count=30.0, count=50.0):
+  return Horizon(obs=jp.zeros(OBS + 3), mode=jp.asarray(mode, jp.int32), log_prob=jp.zeros(()),
+                 reward=jp.asarray(reward), done_count=jp.asarray(done_count),
+                 count=jp.asarray(count))
+
+
+def test_close_rewards_and_dones():
+  top = _top("ours")  # Push: alpha (0, 0.4, 0.7), S_O 0.6 each, 0.9 while starting
+  for mode, alpha in enumerate((0.0, 0.4, 0.7)):
+    tr, m = top.close(_horizon(mode), False, False)
+    np.testing.assert_allclose(tr.reward, -100.0 * (1 + alpha), rtol=1e-6)
+    np.testing.assert_allclose(m["s_o_m"], 0.6)
+    assert tr.done == 1.0  # 30/50 = 0.6 >= S_O = 0.6
+  tr, _ = top.close(_horizon(hierarchy.PPO), True, False)
+  assert tr.done == 0.0  # the starting mode asks for 0.9
+  tr, _ = top.close(_horizon(hierarchy.PPO, done_count=0.0), False, True)
+  assert tr.done == 1.0  # an episode's end ends the Top's return too
+  tr, _ = _top("ours-no-reward-mod").close(_horizon(hierarchy.RANDOM), False, False)
+  np.testing.assert_allclose(tr.reward, -100.0)  # alpha = 0
+
+
+def test_top_accumulates_its_horizon():
+  top = _top("ours")
+  h = _horizon(0, reward=0.0, done_count=0.0, count=0.0)
+  for r, s in ((-2.0, 0.0), (-1.0, 1.0), (-0.5, 1.0)):
+    h = top.accumulate(h, jp.asarray(r), jp.asarray(s))
+  np.testing.assert_allclose((h.reward, h.done_count, h.count), (-3.5, 2.0, 3.0))
+
+
+def test_forced_start_is_random_with_its_log_prob():
+  top = _top("ours")
+  params = top.ppo.init(jax.random.PRNGKey(0)).params
+  obs = jp.ones(OBS)
+  h = top.start(params, obs, jax.random.PRNGKey(1), True)
+  assert h.mode == hierarchy.RANDOM
+  x = jp.concatenate([obs, jp.asarray(TARGET)])
+  logp = jp.stack([top.ppo.log_prob(params, x, jp.asarray(a), None) for a in range(3)])
+  np.testing.assert_allclose(jp.exp(logp).sum(), 1.0, rtol=1e-6)
+  np.testing.assert_allclose(h.log_prob, logp[hierarchy.RANDOM], rtol=1e-6)
+  modes = jax.vmap(lambda k: top.start(params, obs, k, False).mode)(
+      jax.random.split(jax.random.PRNGKey(2), 300))
+  assert set(np.unique(modes)) == {0, 1, 2}
+
+
+def _rollout():
+  return ppo.Rollout(obs=jax.random.normal(jax.random.PRNGKey(3), (2, 8, OBS + 3)),
+                     action=jp.array([[0, 1, 2, 0, 1, 2, 0, 0]] * 2),
+                     log_prob=jp.full((2, 8), -1.1), reward=-jp.arange(16.0).reshape(2, 8),
+                     done=jp.zeros((2, 8)).at[:, 3].set(1))
+
+
+def test_loss_modification_weights_td3_down_and_exploration_up():
+  rollout, s_e = _rollout(), jp.asarray(0.5)
+  state = _top("ours").ppo.init(jax.random.PRNGKey(0))
+  top, plain = _top("ours"), _top("ours-no-loss-mod")
+  got, _ = top.update(state, rollout, s_e)
+  weights = jp.where(rollout.action == 0, 0.5, 1.5)
+  want, _ = top.ppo.update(state, rollout, None, weights)
+  for a, b in zip(jax.tree.leaves(got.params), jax.tree.leaves(want.params)):
+    np.testing.assert_allclose(a, b, rtol=1e-6)
+  # Without the loss modification S_E does not matter, and with S_E = 0 both agree.
+  a, _ = plain.update(state, rollout, s_e)
+  b, _ = plain.update(state, rollout, jp.asarray(0.9))
+  c, _ = top.update(state, rollout, jp.asarray(0.0))
+  same = lambda x, y: all(np.allclose(p, q) for p, q in zip(jax.tree.leaves(x.params),
+                                                              jax.tree.leaves(y.params)))
+  assert same(a, b) and same(a, c) and not same(a, got)
