@@ -61,6 +61,7 @@ class SeedState:
   mode_steps: jax.Array  # (3,) int32 env steps run in each mode after warm-up
   s_e: jax.Array  # the latest evaluation success rate S_E
   eval_distance: jax.Array  # and its mean final distance to the target
+  eval_return: jax.Array  # and its mean episode return
   key: jax.Array
 
 
@@ -76,7 +77,7 @@ class Agent:
   switch: InformedSwitch | None
   init: Callable[[jax.Array], SeedState]
   step: Callable[[SeedState, jax.Array], tuple[SeedState, dict]]
-  evaluate: Callable[..., tuple[jax.Array, jax.Array]]  # (low params, middle params, key)
+  evaluate: Callable[..., tuple]  # (low params, middle params, key) -> S_E, distance, return
 
 
 def _gated(pred, fn, state):
@@ -139,7 +140,7 @@ def make_agent(env, config: AgentConfig = AgentConfig()) -> Agent:
         goal=jp.zeros((E, hierarchy.GOAL_SIZE)), segment=None,
         mode=jp.full((E,), hierarchy.TD3, jp.int32), horizon=None, trigger=None,
         mode_steps=jp.zeros((N_MODES,), jp.int32), s_e=jp.zeros(()),
-        eval_distance=jp.zeros(()), key=key)
+        eval_distance=jp.zeros(()), eval_return=jp.zeros(()), key=key)
     if has_top:
       horizon = jax.vmap(top.start, in_axes=(None, 0, 0, None))(
           state.top.params, obs, jax.random.split(kt, E), True)
@@ -256,8 +257,9 @@ def make_agent(env, config: AgentConfig = AgentConfig()) -> Agent:
       return state.replace(top=new), m
 
     def evaluation(state):
-      s_e, dist = evaluate(state.low.params, state.middle.params, kev)
-      return state.replace(s_e=s_e, eval_distance=dist), {"success": s_e, "distance": dist}
+      s_e, dist, ret = evaluate(state.low.params, state.middle.params, kev)
+      return (state.replace(s_e=s_e, eval_distance=dist, eval_return=ret),
+              {"success": s_e, "distance": dist, "return": ret})
 
     gates = [("low", live, low_update), ("middle", live & segment_end, middle_update)]
     if has_ppo:

@@ -18,7 +18,7 @@ from nonmono_jax import hierarchy
 
 def make_evaluate(env, c: int, low_act: Callable, middle_act: Callable,
                   episodes: int) -> Callable:
-  """``evaluate(low_params, middle_params, key) -> (S_E, mean final distance)``.
+  """``evaluate(low_params, middle_params, key) -> (S_E, mean final distance, mean return)``.
 
   ``low_act(params, obs, goal)`` and ``middle_act(params, obs, target)`` are the noiseless
   TD3 policies.
@@ -36,12 +36,12 @@ def make_evaluate(env, c: int, low_act: Callable, middle_act: Callable,
         s2 = env.step(s, a)
         g2 = hierarchy.goal_transition(s.obs, g, s2.obs)
         g2 = jp.where((t + 1) % c == 0, middle_act(middle_params, s2.obs, target), g2)
-        return (s2, g2), s2.metrics["success"]
+        return (s2, g2), (s2.metrics["success"], s2.reward)
 
-      (s_end, _), success = jax.lax.scan(body, (s, g), jp.arange(env.episode_length))
-      return success.max(), s_end.metrics["distance"]
+      (s_end, _), (success, reward) = jax.lax.scan(body, (s, g), jp.arange(env.episode_length))
+      return success.max(), s_end.metrics["distance"], reward.sum()
 
-    success, distance = jax.vmap(episode)(jax.random.split(key, episodes))
-    return success.mean(), distance.mean()
+    success, distance, ret = jax.vmap(episode)(jax.random.split(key, episodes))
+    return success.mean(), distance.mean(), ret.mean()
 
   return evaluate

@@ -111,3 +111,46 @@ def make_config(method: str, task: str, **overrides) -> AgentConfig:
                      f"{', '.join(f.name for f in dataclasses.fields(AgentConfig))}")
   fields.update(overrides)
   return AgentConfig(**fields)
+
+
+PRESETS = ("paper", "quick")
+
+
+@dataclasses.dataclass(frozen=True)
+class RunSpec:
+  """How long and how wide a run is, besides the agent's configuration."""
+
+  steps: int  # vector steps (env steps = steps x num_envs)
+  seeds: int
+  episode_length: int
+  chunk: int  # vector steps per jitted call: one metrics row per seed each
+  checkpoint_every: int  # vector steps between checkpoints (a multiple of chunk)
+
+
+# quick: a 2-core CPU runs a few methods of a point task in about 10 minutes; on the ant it
+# shows the whole pipeline (warm-up, starting mode, all modes live, evaluations) in minutes,
+# not learning.
+_QUICK_POINT = dict(steps=40_000, seeds=4, chunk=2_000, checkpoint_every=10_000)
+_QUICK_ANT_AGENT = {"warmup_steps": 1_000, "eval_every": 2_000, "eval_episodes": 2,
+                    "top": {"starting_steps": 1_000}}
+
+
+def make_preset(preset: str, method: str, task: str) -> tuple[AgentConfig, RunSpec]:
+  """The agent config and run size of ``preset`` ("paper" or "quick") for method x task."""
+  if preset not in PRESETS:
+    raise ValueError(f"preset must be one of {', '.join(PRESETS)}; got {preset!r}")
+  config = make_config(method, task)
+  t = TASKS[task]
+  point = task.startswith("Point")
+  if preset == "paper":
+    chunk = config.eval_every
+    every = chunk if point else 100_000
+    return config, RunSpec(steps=t.total_steps, seeds=5, episode_length=t.episode_length,
+                           chunk=chunk, checkpoint_every=every)
+  if point:
+    return config, RunSpec(episode_length=t.episode_length, **_QUICK_POINT)
+  top = dataclasses.replace(config.top, **_QUICK_ANT_AGENT["top"])
+  config = dataclasses.replace(config, top=top, **{k: v for k, v in _QUICK_ANT_AGENT.items()
+                                                   if k != "top"})
+  return config, RunSpec(steps=6_000, seeds=1, episode_length=t.episode_length, chunk=1_000,
+                         checkpoint_every=2_000)

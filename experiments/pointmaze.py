@@ -1,0 +1,12 @@
+"""`python -m experiments.pointmaze`: the paper's experiment on PointMaze (see `experiments/cli.py`).
+
+    python -m experiments.pointmaze --method ours hiro ref-uniform ref-ppo --preset quick
+    python -m experiments.pointmaze --help          # every option and config field
+"""
+
+import sys
+
+from experiments import cli
+
+if __name__ == "__main__":
+  sys.exit(cli.main("PointMaze"))

@@ -1,0 +1,188 @@
+"""What a run leaves on disk: its folder, ``config.json``, ``metrics.csv`` and orbax checkpoints.
+
+    out/config.json                 everything needed to rerun (configs, versions, device)
+    out/metrics.csv                 long form: one row per method, seed and log step
+    out/checkpoints/<method>/<step> orbax checkpoints of the vmapped train state
+
+Consistency under a kill at any moment (SIGKILL included): a chunk's metrics rows are written
+and flushed before its checkpoint, orbax writes each checkpoint into a temporary folder that
+it renames when complete, and ``MetricsFile.truncate`` drops, on resume, the rows past the
+checkpoint the run restarts from (and a half-written last line).
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import json
+import os
+from typing import Any, Iterable
+
+import jax
+import jax.numpy as jp
+import numpy as np
+import orbax.checkpoint as ocp
+
+from nonmono_jax import hierarchy
+
+LOSSES = ("low/critic_loss", "low/actor_loss", "middle/critic_loss", "middle/actor_loss",
+          "middle_ppo/loss", "top/loss")
+COLUMNS = (
+    ("task", "method", "seed", "env_step", "eval_success", "eval_distance", "eval_return",
+     "train_reward", "train_success", "train_distance")
+    + tuple(f"steps_{m}" for m in hierarchy.MODES)
+    + tuple(f"cum_steps_{m}" for m in hierarchy.MODES)
+    + tuple(f"p_{m}" for m in hierarchy.MODES)
+    + tuple(name.replace("/", "_") for name in LOSSES))
+
+
+def to_jsonable(obj: Any) -> Any:
+  """Dataclasses (configs) and tuples to plain JSON values."""
+  if dataclasses.is_dataclass(obj):
+    return {f.name: to_jsonable(getattr(obj, f.name)) for f in dataclasses.fields(obj)}
+  if isinstance(obj, (list, tuple)):
+    return [to_jsonable(x) for x in obj]
+  if isinstance(obj, dict):
+    return {k: to_jsonable(v) for k, v in obj.items()}
+  return obj
+
+
+def write_json(path: str, payload: dict) -> None:
+  """Atomically: a temporary file renamed over ``path``."""
+  tmp = path + ".tmp"
+  with open(tmp, "w") as f:
+    json.dump(payload, f, indent=1, sort_keys=True)
+    f.flush()
+    os.fsync(f.fileno())
+  os.replace(tmp, path)
+
+
+def read_json(path: str) -> dict:
+  with open(path) as f:
+    return json.load(f)
+
+
+def chunk_rows(task: str, method: str, env_step: int, states, metrics: dict) -> list[dict]:
+  """One metrics row per seed for a finished chunk (``metrics``: ``train.reduce_chunk``)."""
+  m = jax.tree.map(np.asarray, metrics)
+  cum = np.asarray(states.mode_steps)
+  s_e, dist, ret = (np.asarray(x) for x in (states.s_e, states.eval_distance,
+                                             states.eval_return))
+  rows = []
+  for seed in range(cum.shape[0]):
+    row = {"task": task, "method": method, "seed": seed, "env_step": env_step,
+           "eval_success": s_e[seed], "eval_distance": dist[seed], "eval_return": ret[seed],
+           "train_reward": m["reward"][seed], "train_success": m["success"][seed],
+           "train_distance": m["distance"][seed]}
+    for j, mode in enumerate(hierarchy.MODES):
+      row[f"steps_{mode}"] = m[f"count/{mode}"][seed]
+      row[f"cum_steps_{mode}"] = cum[seed, j]
+      p = m.get(f"horizon/p_{mode}")
+      row[f"p_{mode}"] = p[seed] if p is not None and m["horizon/updated"][seed] > 0 else ""
+    for name in LOSSES:
+      level = name.split("/")[0]
+      ran = name in m and m[f"{level}/updated"][seed] > 0
+      row[name.replace("/", "_")] = m[name][seed] if ran else ""
+    rows.append({k: (float(v) if isinstance(v, np.floating) else
+                     int(v) if isinstance(v, np.integer) else v) for k, v in row.items()})
+  return rows
+
+
+class MetricsFile:
+  """``metrics.csv``: rows appended and flushed to disk after every chunk."""
+
+  def __init__(self, path: str):
+    self.path = path
+    if not os.path.exists(path):
+      with open(path, "w", newline="") as f:
+        csv.writer(f).writerow(COLUMNS)
+
+  def append(self, rows: Iterable[dict]) -> None:
+    with open(self.path, "a", newline="") as f:
+      w = csv.DictWriter(f, COLUMNS)
+      for row in rows:
+        w.writerow(row)
+      f.flush()
+      os.fsync(f.fileno())
+
+  def read(self) -> list[dict]:
+    with open(self.path, newline="") as f:
+      return list(csv.DictReader(f))
+
+  def truncate(self, method: str, env_step: int) -> int:
+    """Drop ``method``'s rows past ``env_step`` and any malformed line; returns rows dropped."""
+    with open(self.path, newline="") as f:
+      lines = f.read().splitlines()
+    keep, dropped = [lines[0]], 0
+    for line in lines[1:]:
+      values = next(csv.reader([line]), [])
+      row = dict(zip(COLUMNS, values))
+      bad = len(values) != len(COLUMNS)
+      if bad or (row["method"] == method and int(row["env_step"]) > env_step):
+        dropped += 1
+        continue
+      keep.append(line)
+    tmp = self.path + ".tmp"
+    with open(tmp, "w", newline="") as f:
+      f.write("\n".join(keep) + "\n")
+      f.flush()
+      os.fsync(f.fileno())
+    os.replace(tmp, self.path)
+    return dropped
+
+
+class Checkpoints:
+  """Orbax checkpoints of one method's train state, keyed by the vector step reached."""
+
+  def __init__(self, directory: str, max_to_keep: int = 2):
+    # Synchronous saves: the next chunk donates (overwrites) the state being saved.
+    self.manager = ocp.CheckpointManager(
+        os.path.abspath(directory),
+        options=ocp.CheckpointManagerOptions(max_to_keep=max_to_keep, create=True,
+                                             enable_async_checkpointing=False))
+
+  def latest_step(self) -> int | None:
+    return self.manager.latest_step()
+
+  # Orbax cannot store zero-size arrays (a maze without blocks has a (seeds, envs, 0, 3)
+  # ``blocks``): the checkpoint holds the other leaves by position, and a restore takes the
+  # empty ones from the template.
+  @staticmethod
+  def _stored(leaves):
+    return {str(i): x for i, x in enumerate(leaves) if np.prod(x.shape) > 0}
+
+  def save(self, step: int, states) -> None:
+    self.manager.save(step, args=ocp.args.StandardSave(self._stored(jax.tree.leaves(states))))
+    self.manager.wait_until_finished()
+
+  def restore(self, step: int, like):
+    """The state saved at ``step``, shaped and placed like ``like`` (arrays or abstract)."""
+    leaves, treedef = jax.tree.flatten(like)
+    abstract = {k: jax.ShapeDtypeStruct(x.shape, x.dtype, sharding=getattr(x, "sharding", None))
+                for k, x in self._stored(leaves).items()}
+    got = self.manager.restore(step, args=ocp.args.StandardRestore(abstract))
+    return jax.tree.unflatten(treedef, [got.get(str(i), x) for i, x in enumerate(leaves)])
+
+  def close(self) -> None:
+    self.manager.close()
+
+
+def first_non_finite(states, metrics: dict) -> tuple[int, str] | None:
+  """(seed, where) of the first NaN or Inf in the learners' parameters or the chunk's losses."""
+  parts = {"low": states.low.params, "middle": states.middle.params}
+  if states.middle_ppo is not None:
+    parts["middle_ppo"] = states.middle_ppo.params
+  if states.top is not None:
+    parts["top"] = states.top.params
+  for name, value in metrics.items():
+    if name.split("/")[0] in parts or name in ("reward",):
+      parts[f"metric {name}"] = value
+  finite = {k: np.asarray(jax.tree.reduce(
+      jp.logical_and, jax.tree.map(lambda x: jp.all(jp.isfinite(x), axis=tuple(range(1, x.ndim))),
+                                   v))) for k, v in parts.items()}
+  n = np.asarray(states.s_e).shape[0]
+  for seed in range(n):
+    for name, ok in finite.items():
+      if not ok[seed]:
+        return seed, name
+  return None

@@ -1,0 +1,132 @@
+"""The experiment command: good and bad input, run folders, resume equivalence, kill and resume."""
+
+import csv
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from experiments import cli
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+TINY = ["--preset", "quick", "--seeds", "2", "--steps", "800", "--chunk", "200",
+        "--checkpoint-every", "200", "--episode-length", "100", "--warmup_steps", "100",
+        "--top.starting_steps", "100", "--eval_every", "200", "--eval_episodes", "2",
+        "--low.hidden", "16", "16", "--middle.hidden", "16", "16", "--low.batch_size", "8",
+        "--middle.batch_size", "8", "--middle_ppo.hidden", "16", "--top.ppo.hidden", "16",
+        "--no-progress"]
+
+
+def _rows(out):
+  with open(os.path.join(out, "metrics.csv"), newline="") as f:
+    return list(csv.DictReader(f))
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+  """An uninterrupted tiny run of ours and Ref:PPO."""
+  out = str(tmp_path_factory.mktemp("ref") / "run")
+  assert cli.main("PointMaze", TINY + ["--method", "ours", "ref-ppo", "--out", out]) == 0
+  return out
+
+
+def test_run_folder_holds_config_metrics_and_checkpoints(reference):
+  config = json.load(open(os.path.join(reference, "config.json")))
+  assert config["methods"] == ["ours", "ref-ppo"] and config["task"] == "PointMaze"
+  assert config["configs"]["ours"]["low"]["hidden"] == [16, 16]
+  assert config["configs"]["ours"]["top"]["starting_steps"] == 100
+  assert config["versions"]["jax"] and config["platform"] == "cpu"
+  rows = _rows(reference)
+  assert len(rows) == 2 * 2 * 4  # methods x seeds x chunks
+  assert [r["env_step"] for r in rows[:4]] == ["200", "200", "400", "400"]
+  last = [r for r in rows if r["method"] == "ours"][-2:]
+  for r in last:  # 700 steps after warm-up, in modes
+    assert sum(int(r[f"cum_steps_{m}"]) for m in ("TD3", "PPO", "RANDOM")) == 700 * 1
+    assert r["low_critic_loss"] != "" and r["top_loss"] != ""
+  assert all(r["top_loss"] == "" for r in rows if r["method"] == "ref-ppo")
+  for method in ("ours", "ref-ppo"):
+    assert sorted(os.listdir(os.path.join(reference, "checkpoints", method)))[-1] == "800"
+
+
+def test_resume_after_a_stop_gives_the_same_metrics(reference, tmp_path):
+  out = str(tmp_path / "run")
+  # Stop ours after 2 of its 4 chunks: keep only what a run killed then would have left.
+  assert cli.main("PointMaze", TINY + ["--method", "ours", "ref-ppo", "--out", out,
+                                       "--steps", "400"]) == 0
+  # A run stopped at step 400 is a run configured for 800 that has reached 400.
+  cfg = json.load(open(os.path.join(out, "config.json")))
+  cfg["run"]["steps"] = 800
+  json.dump(cfg, open(os.path.join(out, "config.json"), "w"))
+  for d in ("ref-ppo",):  # ref-ppo had not started yet when ours was stopped
+    import shutil
+    shutil.rmtree(os.path.join(out, "checkpoints", d))
+  with open(os.path.join(out, "metrics.csv")) as f:
+    lines = [l for l in f if ",ref-ppo," not in l]
+  with open(os.path.join(out, "metrics.csv"), "w") as f:
+    f.writelines(lines)
+  assert cli.main("PointMaze", ["--resume", out, "--no-progress"]) == 0
+  assert _rows(out) == _rows(reference)
+
+
+def test_sigkill_leaves_a_resumable_run(reference, tmp_path):
+  out = str(tmp_path / "run")
+  env = {**os.environ, "PYTHONPATH": ROOT}
+  proc = subprocess.Popen([sys.executable, "-m", "experiments.pointmaze", *TINY,
+                           "--method", "ours", "ref-ppo", "--out", out], cwd=ROOT, env=env,
+                          stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+  ckpts = os.path.join(out, "checkpoints", "ours")
+  deadline = time.time() + 300
+  while time.time() < deadline and proc.poll() is None:
+    if os.path.isdir(ckpts) and any(d.isdigit() for d in os.listdir(ckpts)):
+      break
+    time.sleep(0.05)
+  assert proc.poll() is None, "the run ended before it could be killed"
+  os.kill(proc.pid, signal.SIGKILL)
+  proc.wait()
+  rows = _rows(out)  # readable, consistent up to a checkpoint
+  assert rows and all(r["method"] == "ours" for r in rows)
+  assert cli.main("PointMaze", ["--resume", out, "--no-progress"]) == 0
+  assert _rows(out) == _rows(reference)
+
+
+@pytest.mark.parametrize("argv,message", [
+    (["--method", "sac"], "invalid choice"),
+    (["--preset", "huge"], "invalid choice"),
+    (["--top.alpha", "0", "0.4"], "top.alpha must have 3 entries"),
+    (["--c", "-10"], "c must be >= 1"),
+    (["--top.horizon", "-50"], "top.horizon must be >= 1"),
+    (["--homeostasis.rho", "1.5"], "rho must be in (0, 1]"),
+    (["--top.s_o", "0.6", "0.6", "2"], "top.s_o entries must be in"),
+    (["--steps", "1001", "--chunk", "1000"], "must be a multiple of --chunk"),
+    (["--horizon", "5"], "unrecognized arguments"),
+    (["--low.batch_size", "many"], "invalid int value"),
+])
+def test_bad_input_exits_2_naming_the_field_and_writes_nothing(tmp_path, capsys, argv, message):
+  out = tmp_path / "run"
+  with pytest.raises(SystemExit) as err:
+    cli.main("PointMaze", argv + ["--out", str(out)])
+  assert err.value.code == 2
+  assert message in capsys.readouterr().err
+  assert not out.exists()
+
+
+def test_existing_output_is_never_overwritten(reference, capsys):
+  before = _rows(reference)
+  with pytest.raises(SystemExit) as err:
+    cli.main("PointMaze", TINY + ["--method", "ours", "--out", reference])
+  assert err.value.code == 2 and "--resume" in capsys.readouterr().err
+  assert _rows(reference) == before
+
+
+def test_help_lists_every_field_with_its_default(capsys):
+  with pytest.raises(SystemExit):
+    cli.main("AntPush", ["--help"])
+  text = capsys.readouterr().out
+  for flag in ("--top.alpha", "--homeostasis.rho", "--low.batch_size", "--middle_ppo.std_init",
+               "--num_envs", "--resume", "--preset"):
+    assert flag in text
+  assert "(default: (0.0, 0.4, 0.7))" in text
