@@ -56,11 +56,18 @@ class Run:
       return st, (m, mode, left)
 
     @jax.jit
+    def chunk(states, t0):  # one compiled program of WARMUP steps, called STEPS / WARMUP times
+      return jax.lax.scan(body, states, t0 + jp.arange(WARMUP))
+
     def go(keys):
-      start = jax.vmap(ag.init)(keys)
-      mid, r1 = jax.lax.scan(body, start, jp.arange(WARMUP))
-      end, r2 = jax.lax.scan(body, mid, WARMUP + jp.arange(STEPS - WARMUP))
-      return start, mid, end, jax.tree.map(lambda a, b: jp.concatenate([a, b]), r1, r2)
+      start = jax.jit(jax.vmap(ag.init))(keys)
+      states, records = start, []
+      for t0 in range(0, STEPS, WARMUP):
+        states, rec = chunk(states, t0)
+        records.append(rec)
+        if t0 == 0:
+          mid = states
+      return start, mid, states, jax.tree.map(lambda *r: jp.concatenate(r), *records)
 
     self.go = go
     self.keys = jax.random.split(jax.random.PRNGKey(0), SEEDS)

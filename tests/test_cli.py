@@ -130,3 +130,18 @@ def test_help_lists_every_field_with_its_default(capsys):
                "--num_envs", "--resume", "--preset"):
     assert flag in text
   assert "(default: (0.0, 0.4, 0.7))" in text
+
+
+def test_plots_are_drawn_from_a_run(reference, tmp_path):
+  from experiments import plot
+
+  assert plot.main([reference, "--out", str(tmp_path)]) == 0
+  names = sorted(os.listdir(tmp_path))
+  assert names == ["pointmaze_modes.pdf", "pointmaze_modes.png", "pointmaze_success.pdf",
+                   "pointmaze_success.png"]
+  assert all(os.path.getsize(tmp_path / n) > 5000 for n in names)
+  steps, mean, std, n = plot.curves(_rows(reference), "PointMaze", "ours", "cum_steps_RANDOM")
+  assert n == 2 and list(steps) == [200, 400, 600, 800] and mean[-1] > 0
+  with pytest.raises(SystemExit) as err:
+    plot.main([str(tmp_path / "missing")])
+  assert err.value.code == 2

@@ -1,0 +1,143 @@
+"""Draw the paper's figures from run folders: ``python -m experiments.plot DIR [DIR ...]``.
+
+Per task found in the folders' ``metrics.csv`` files:
+
+- ``<task>_success``: S_E (evaluation success rate of Middle TD3 + Low TD3) and the evaluation
+  return against env steps, one line per method: the mean over seeds with a band of one
+  standard deviation (the paper's success-rate and reward figures);
+- ``<task>_modes``: for every method, the cumulative env steps run in each mode (TD3 =
+  exploitation, PPO and RANDOM = exploration) against env steps (the paper's mode counts);
+- ``<task>_ablation``: S_E of ours and its ablations, where the folders hold any of them.
+
+Each is written as PNG and PDF into ``--out`` (default: ``DIR/figures`` of the first folder).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import os
+import sys
+from collections import defaultdict
+
+import numpy as np
+
+MODES = ("TD3", "PPO", "RANDOM")
+LABELS = {"ours": "Ours", "hiro": "HIRO", "ref-uniform": "Ref:Uniform", "ref-ppo": "Ref:PPO",
+          "ours-no-reward-mod": "Ours w/o reward mod.", "ours-no-loss-mod": "Ours w/o loss mod.",
+          "ours-no-mods": "Ours w/o both"}
+ABLATIONS = ("ours", "ours-no-reward-mod", "ours-no-loss-mod", "ours-no-mods")
+MODE_COLORS = {"TD3": "tab:blue", "PPO": "tab:orange", "RANDOM": "tab:green"}
+
+
+def load(dirs) -> list[dict]:
+  rows = []
+  for d in dirs:
+    path = os.path.join(d, "metrics.csv")
+    if not os.path.exists(path):
+      raise FileNotFoundError(f"{path} not found (is {d} a run folder?)")
+    with open(path, newline="") as f:
+      rows.extend(csv.DictReader(f))
+  return rows
+
+
+def curves(rows, task, method, column):
+  """(steps, mean, std) over seeds of ``column``; steps where every seed has a value."""
+  by_step = defaultdict(dict)
+  for r in rows:
+    if r["task"] == task and r["method"] == method and r[column] != "":
+      by_step[int(r["env_step"])][r["seed"]] = float(r[column])
+  n_seeds = max((len(v) for v in by_step.values()), default=0)
+  steps = sorted(s for s, v in by_step.items() if len(v) == n_seeds)
+  values = np.array([[by_step[s][k] for k in sorted(by_step[s])] for s in steps])
+  if not steps:
+    return np.zeros(0), np.zeros(0), np.zeros(0), 0
+  return np.array(steps), values.mean(1), values.std(1), n_seeds
+
+
+def _band(ax, steps, mean, std, label, color=None):
+  line, = ax.plot(steps, mean, label=label, color=color, lw=1.6)
+  ax.fill_between(steps, mean - std, mean + std, color=line.get_color(), alpha=0.2, lw=0)
+
+
+def _finish(fig, out, name):
+  fig.tight_layout()
+  paths = []
+  for ext in ("png", "pdf"):
+    path = os.path.join(out, f"{name}.{ext}")
+    fig.savefig(path, dpi=150)
+    paths.append(path)
+  return paths
+
+
+def plot(dirs, out=None) -> list[str]:
+  import matplotlib
+  matplotlib.use("Agg")
+  import matplotlib.pyplot as plt
+
+  rows = load(dirs)
+  out = out or os.path.join(dirs[0], "figures")
+  os.makedirs(out, exist_ok=True)
+  written = []
+  for task in sorted({r["task"] for r in rows}):
+    present = [m for m in LABELS if any(r["task"] == task and r["method"] == m for r in rows)]
+
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4))
+    for m in present:
+      steps, mean, std, n = curves(rows, task, m, "eval_success")
+      _band(ax1, steps, mean, std, f"{LABELS[m]} ({n} seeds)")
+      steps, mean, std, n = curves(rows, task, m, "eval_return")
+      _band(ax2, steps, mean, std, LABELS[m])
+    ax1.set(title=f"{task}: success rate", xlabel="env steps",
+            ylabel="S_E (Middle TD3 + Low TD3)", ylim=(-0.05, 1.05))
+    ax2.set(title=f"{task}: evaluation return", xlabel="env steps", ylabel="return per episode")
+    ax1.legend(fontsize=8)
+    for ax in (ax1, ax2):
+      ax.grid(alpha=0.3)
+    written += _finish(fig, out, f"{task.lower()}_success")
+    plt.close(fig)
+
+    fig, axes = plt.subplots(1, len(present), figsize=(3.6 * len(present), 3.4), sharey=True,
+                             squeeze=False)
+    for ax, m in zip(axes[0], present):
+      for mode in MODES:
+        steps, mean, std, _ = curves(rows, task, m, f"cum_steps_{mode}")
+        _band(ax, steps, mean, std, mode, MODE_COLORS[mode])
+      ax.set(title=LABELS[m], xlabel="env steps")
+      ax.grid(alpha=0.3)
+    axes[0][0].set_ylabel("env steps run in the mode (cumulative)")
+    axes[0][0].legend(fontsize=8)
+    fig.suptitle(f"{task}: exploitation (TD3) and exploration (PPO, RANDOM)")
+    written += _finish(fig, out, f"{task.lower()}_modes")
+    plt.close(fig)
+
+    ablations = [m for m in ABLATIONS if m in present]
+    if len(ablations) > 1:
+      fig, ax = plt.subplots(figsize=(5.5, 4))
+      for m in ablations:
+        steps, mean, std, n = curves(rows, task, m, "eval_success")
+        _band(ax, steps, mean, std, f"{LABELS[m]} ({n} seeds)")
+      ax.set(title=f"{task}: ablations", xlabel="env steps", ylabel="S_E", ylim=(-0.05, 1.05))
+      ax.legend(fontsize=8)
+      ax.grid(alpha=0.3)
+      written += _finish(fig, out, f"{task.lower()}_ablation")
+      plt.close(fig)
+  return written
+
+
+def main(argv=None) -> int:
+  p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+  p.add_argument("dirs", nargs="+", help="run folders (each with a metrics.csv)")
+  p.add_argument("--out", default=None, help="figure folder (default: DIR/figures)")
+  args = p.parse_args(argv)
+  try:
+    written = plot(args.dirs, args.out)
+  except FileNotFoundError as e:
+    p.error(str(e))
+  for path in written:
+    print(path)
+  return 0
+
+
+if __name__ == "__main__":
+  sys.exit(main())
