@@ -265,7 +265,8 @@ def train_method(plan: Plan, method: str, metrics_file: io.MetricsFile, progress
       ckpts.close()
       raise NonFinite(f"{method}: NaN or Inf in {bad[1]} of seed {bad[0]} within steps "
                       f"{t0}-{t_end}; the last good checkpoint is step {last}")
-    rows = io.chunk_rows(plan.task, method, t_end * config.num_envs, states, metrics)
+    evaluated = t_end >= config.first_eval_steps
+    rows = io.chunk_rows(plan.task, method, t_end * config.num_envs, states, metrics, evaluated)
     metrics_file.append(rows)
     if t_end % spec.checkpoint_every == 0 or t_end == spec.steps:
       ckpts.save(t_end, states)
@@ -274,7 +275,7 @@ def train_method(plan: Plan, method: str, metrics_file: io.MetricsFile, progress
     else:
       steps_done += spec.chunk
       rate = steps_done * spec.seeds * config.num_envs / (time.perf_counter() - t_start)
-    s_e = sum(r["eval_success"] for r in rows) / len(rows)
+    s_e = sum(r["eval_success"] or 0.0 for r in rows) / len(rows)
     shares = {m: sum(r[f"steps_{m}"] for r in rows) for m in hierarchy.MODES}
     total = max(sum(shares.values()), 1)
     status = (f"S_E {s_e:.2f} | " + " ".join(f"{m} {shares[m] / total:.0%}"

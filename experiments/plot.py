@@ -9,7 +9,8 @@ Per task found in the folders' ``metrics.csv`` files:
   exploitation, PPO and RANDOM = exploration) against env steps (the paper's mode counts);
 - ``<task>_ablation``: S_E of ours and its ablations, where the folders hold any of them.
 
-Each is written as PNG and PDF into ``--out`` (default: ``DIR/figures`` of the first folder).
+Each is written as PNG and PDF into ``--out`` (default: ``DIR/figures`` of the first folder);
+``--table`` also prints final and best S_E (mean +- std over seeds) and the steps per mode.
 """
 
 from __future__ import annotations
@@ -53,6 +54,38 @@ def curves(rows, task, method, column):
   if not steps:
     return np.zeros(0), np.zeros(0), np.zeros(0), 0
   return np.array(steps), values.mean(1), values.std(1), n_seeds
+
+
+def summary(rows) -> list[dict]:
+  """Per task and method: final and best mean S_E (with the std across seeds) and the mean
+  cumulative env steps per mode at the last logged step."""
+  out = []
+  for task in sorted({r["task"] for r in rows}):
+    for m in LABELS:
+      steps, mean, std, n = curves(rows, task, m, "eval_success")
+      if not n:
+        continue
+      best = int(np.argmax(mean))
+      modes = {mode: curves(rows, task, m, f"cum_steps_{mode}")[1] for mode in MODES}
+      out.append({"task": task, "method": m, "seeds": n, "env_steps": int(steps[-1]),
+                  "final_s_e": float(mean[-1]), "final_s_e_std": float(std[-1]),
+                  "best_s_e": float(mean[best]), "best_s_e_std": float(std[best]),
+                  "best_at": int(steps[best]),
+                  **{f"steps_{mode}": float(v[-1]) if len(v) else 0.0
+                     for mode, v in modes.items()}})
+  return out
+
+
+def markdown_table(summary_rows) -> str:
+  lines = ["| task | method | seeds | env steps | final S_E | best S_E (at) | TD3 / PPO / RANDOM steps |",
+           "|---|---|---|---|---|---|---|"]
+  for r in summary_rows:
+    lines.append(
+        f"| {r['task']} | {LABELS[r['method']]} | {r['seeds']} | {r['env_steps']} | "
+        f"{r['final_s_e']:.2f} +- {r['final_s_e_std']:.2f} | {r['best_s_e']:.2f} +- "
+        f"{r['best_s_e_std']:.2f} ({r['best_at']}) | {r['steps_TD3']:.0f} / "
+        f"{r['steps_PPO']:.0f} / {r['steps_RANDOM']:.0f} |")
+  return "\n".join(lines)
 
 
 def _band(ax, steps, mean, std, label, color=None):
@@ -129,13 +162,18 @@ def main(argv=None) -> int:
   p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
   p.add_argument("dirs", nargs="+", help="run folders (each with a metrics.csv)")
   p.add_argument("--out", default=None, help="figure folder (default: DIR/figures)")
+  p.add_argument("--table", action="store_true",
+                 help="also print a Markdown table of final / best S_E and mode counts")
   args = p.parse_args(argv)
   try:
     written = plot(args.dirs, args.out)
+    rows = load(args.dirs) if args.table else None
   except FileNotFoundError as e:
     p.error(str(e))
   for path in written:
     print(path)
+  if rows is not None:
+    print(markdown_table(summary(rows)))
   return 0
 
 

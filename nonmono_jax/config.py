@@ -128,6 +128,12 @@ class AgentConfig:
     return self.middle_ppo_every // self.c
 
   @property
+  def first_eval_steps(self) -> int:
+    """Steps after which the first evaluation has run (the first multiple of eval_every past
+    warm-up: evaluations run after step t when (t + 1) % eval_every == 0 and t >= warm-up)."""
+    return -(-(self.warmup_steps + 1) // self.eval_every) * self.eval_every
+
+  @property
   def explore_mode_index(self) -> int:
     return hierarchy.PPO if self.explore_mode == "ppo" else hierarchy.RANDOM
 

@@ -62,16 +62,21 @@ def read_json(path: str) -> dict:
     return json.load(f)
 
 
-def chunk_rows(task: str, method: str, env_step: int, states, metrics: dict) -> list[dict]:
-  """One metrics row per seed for a finished chunk (``metrics``: ``train.reduce_chunk``)."""
+def chunk_rows(task: str, method: str, env_step: int, states, metrics: dict,
+               evaluated: bool = True) -> list[dict]:
+  """One metrics row per seed for a finished chunk (``metrics``: ``train.reduce_chunk``).
+
+  The eval columns hold the latest evaluation (empty until the first, ``evaluated``).
+  """
   m = jax.tree.map(np.asarray, metrics)
   cum = np.asarray(states.mode_steps)
   s_e, dist, ret = (np.asarray(x) for x in (states.s_e, states.eval_distance,
                                              states.eval_return))
   rows = []
   for seed in range(cum.shape[0]):
+    ev = (lambda x: x[seed]) if evaluated else (lambda x: "")
     row = {"task": task, "method": method, "seed": seed, "env_step": env_step,
-           "eval_success": s_e[seed], "eval_distance": dist[seed], "eval_return": ret[seed],
+           "eval_success": ev(s_e), "eval_distance": ev(dist), "eval_return": ev(ret),
            "train_reward": m["reward"][seed], "train_success": m["success"][seed],
            "train_distance": m["distance"][seed]}
     for j, mode in enumerate(hierarchy.MODES):

@@ -11,14 +11,10 @@ import time
 import pytest
 
 from experiments import cli
+from tests_support import TINY_RUN
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-TINY = ["--preset", "quick", "--seeds", "2", "--steps", "800", "--chunk", "200",
-        "--checkpoint-every", "200", "--episode-length", "100", "--warmup_steps", "100",
-        "--top.starting_steps", "100", "--eval_every", "200", "--eval_episodes", "2",
-        "--low.hidden", "16", "16", "--middle.hidden", "16", "16", "--low.batch_size", "8",
-        "--middle.batch_size", "8", "--middle_ppo.hidden", "16", "--top.ppo.hidden", "16",
-        "--no-progress"]
+TINY = TINY_RUN
 
 
 def _rows(out):
@@ -74,7 +70,8 @@ def test_resume_after_a_stop_gives_the_same_metrics(reference, tmp_path):
 
 def test_sigkill_leaves_a_resumable_run(reference, tmp_path):
   out = str(tmp_path / "run")
-  env = {**os.environ, "PYTHONPATH": ROOT}
+  cache = os.environ.get("JAX_COMPILATION_CACHE_DIR", os.path.join(ROOT, ".jax_cache"))
+  env = {**os.environ, "PYTHONPATH": ROOT, "JAX_COMPILATION_CACHE_DIR": cache}
   proc = subprocess.Popen([sys.executable, "-m", "experiments.pointmaze", *TINY,
                            "--method", "ours", "ref-ppo", "--out", out], cwd=ROOT, env=env,
                           stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
@@ -88,7 +85,7 @@ def test_sigkill_leaves_a_resumable_run(reference, tmp_path):
   os.kill(proc.pid, signal.SIGKILL)
   proc.wait()
   rows = _rows(out)  # readable, consistent up to a checkpoint
-  assert rows and all(r["method"] == "ours" for r in rows)
+  assert rows and {r["method"] for r in rows} <= {"ours", "ref-ppo"}
   assert cli.main("PointMaze", ["--resume", out, "--no-progress"]) == 0
   assert _rows(out) == _rows(reference)
 
@@ -144,4 +141,60 @@ def test_plots_are_drawn_from_a_run(reference, tmp_path):
   assert n == 2 and list(steps) == [200, 400, 600, 800] and mean[-1] > 0
   with pytest.raises(SystemExit) as err:
     plot.main([str(tmp_path / "missing")])
+  assert err.value.code == 2
+
+
+def test_first_non_finite_names_seed_and_level():
+  from types import SimpleNamespace
+
+  import numpy as np
+
+  from nonmono_jax import io
+
+  params = lambda: {"w": np.ones((3, 4)), "b": np.zeros((3,))}
+  states = SimpleNamespace(low=SimpleNamespace(params=params()),
+                           middle=SimpleNamespace(params=params()), middle_ppo=None,
+                           top=SimpleNamespace(params=params()), s_e=np.zeros(3))
+  metrics = {"top/loss": np.zeros(3), "reward": np.zeros(3)}
+  assert io.first_non_finite(states, metrics) is None
+  states.top.params["w"][2, 1] = np.nan
+  assert io.first_non_finite(states, metrics) == (2, "top")
+  metrics["top/loss"][1] = np.inf
+  assert io.first_non_finite(states, metrics) == (1, "metric top/loss")
+
+
+def test_non_finite_stops_the_run_after_the_last_good_checkpoint(tmp_path, monkeypatch, capsys):
+  from nonmono_jax import io
+
+  calls = []
+
+  def fake(states, metrics):  # a NaN appears in the third chunk
+    calls.append(1)
+    return (1, "middle") if len(calls) == 3 else None
+
+  monkeypatch.setattr(io, "first_non_finite", fake)
+  out = tmp_path / "run"
+  assert cli.main("PointMaze", TINY + ["--method", "ours", "--out", str(out)]) == 1
+  err = capsys.readouterr().err
+  assert "NaN or Inf in middle of seed 1 within steps 400-600" in err
+  assert "last good checkpoint is step 400" in err
+  assert sorted(os.listdir(out / "checkpoints" / "ours")) == ["200", "400"]
+  assert max(int(r["env_step"]) for r in _rows(str(out))) == 400
+
+
+def test_render_writes_a_gif_of_a_trained_policy(reference, tmp_path, capsys):
+  from PIL import Image
+
+  from experiments import render
+
+  out = tmp_path / "roll.gif"
+  assert render.main([reference, "--method", "ref-ppo", "--seed", "1", "--out", str(out),
+                      "--max-frames", "20"]) == 0
+  assert "20 frames" in capsys.readouterr().out
+  with Image.open(out) as im:
+    assert im.n_frames == 20 and im.size[0] > 200
+  roll = render.rollout(reference, "ours", 0)
+  assert roll["pos"].shape == (101, 3) and roll["goal"].shape == (101, 3)
+  with pytest.raises(SystemExit) as err:
+    render.main([reference, "--method", "hiro"])
   assert err.value.code == 2

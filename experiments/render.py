@@ -1,0 +1,153 @@
+"""A rollout of a trained policy as a GIF, drawn headless: ``python -m experiments.render DIR``.
+
+Loads the run's latest checkpoint of ``--method`` (default: the run's first), runs one episode
+of the evaluation policy (Middle TD3 + Low TD3 without noise, each goal held for c steps) for
+``--seed``, and draws it from above: walls, chasm, the movable blocks where they are, the
+target with its success radius, the robot's path, and the Middle's current goal (the world
+point s[:3] + g that the Low is sent to) with the line from the robot to it.
+
+    python -m experiments.render runs/quick --method hiro --seed 1 --out hiro.gif
+
+Both robots are drawn the same way (torso xy for the ant), with matplotlib: no OpenGL needed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+
+import jax
+import jax.numpy as jp
+import numpy as np
+
+import envs
+from experiments import cli
+from nonmono_jax import hierarchy, io, train
+
+
+def rollout(run_dir: str, method: str | None = None, seed: int = 0, key: int = 0) -> dict:
+  """One evaluation episode of a saved run: positions, goals, blocks, success per step."""
+  plan = cli.plan_from_json(io.read_json(os.path.join(run_dir, "config.json")), run_dir)
+  method = method or next(iter(plan.configs))
+  if method not in plan.configs:
+    raise ValueError(f"method {method!r} is not in this run ({', '.join(plan.configs)})")
+  config, spec = plan.configs[method], plan.spec
+  if not 0 <= seed < spec.seeds:
+    raise ValueError(f"seed must be in [0, {spec.seeds}), got {seed}")
+  env = envs.make(plan.task, episode_length=spec.episode_length)
+  trainer = train.make_trainer(env, config, num_seeds=spec.seeds, chunk_steps=spec.chunk)
+  ckpts = io.Checkpoints(os.path.join(run_dir, "checkpoints", method))
+  step = ckpts.latest_step()
+  if step is None:
+    raise ValueError(f"no checkpoint of {method} in {run_dir}")
+  like = jax.eval_shape(trainer.init, jax.random.PRNGKey(0))
+  states = ckpts.restore(step, like)
+  ckpts.close()
+  pick = lambda tree: jax.tree.map(lambda x: x[seed], tree)
+  low_params, middle_params = pick(states.low.params), pick(states.middle.params)
+  agent, c = trainer.agent, config.c
+  target = jp.asarray(env.target, jp.float32)
+
+  @jax.jit
+  def episode(k):
+    s = env.reset(k)
+    g = agent.middle.td3.act(middle_params, s.obs, target)
+
+    def body(carry, t):
+      s, g = carry
+      a = agent.low.td3.act(low_params, s.obs, g)
+      s2 = env.step(s, a)
+      g2 = hierarchy.goal_transition(s.obs, g, s2.obs)
+      g2 = jp.where((t + 1) % c == 0, agent.middle.td3.act(middle_params, s2.obs, target), g2)
+      out = {"pos": s2.obs[:3], "goal": s.obs[:3] + g, "blocks": env.block_positions(s2),
+             "success": s2.metrics["success"]}
+      return (s2, g2), out
+
+    first = {"pos": s.obs[:3], "goal": s.obs[:3] + g, "blocks": env.block_positions(s),
+             "success": s.metrics["success"]}
+    _, outs = jax.lax.scan(body, (s, g), jp.arange(env.episode_length))
+    return jax.tree.map(lambda a, b: jp.concatenate([a[None], b]), first, outs)
+
+  out = jax.tree.map(np.asarray, episode(jax.random.PRNGKey(key)))
+  return {**out, "env": env, "task": plan.task, "method": method, "seed": seed, "step": step,
+          "num_envs": config.num_envs}
+
+
+def draw(roll: dict, path: str, max_frames: int = 150, fps: int = 15) -> int:
+  """Writes the GIF; returns the number of frames."""
+  import matplotlib
+  matplotlib.use("Agg")
+  import matplotlib.pyplot as plt
+  from matplotlib import animation, patches
+
+  env = roll["env"]
+  lay = env.layout
+  fig, ax = plt.subplots(figsize=(5, 5))
+  walls, ghosts = lay.wall_boxes(optimised=False)
+  for box in walls + ghosts:
+    lo, hi = box.lo, box.hi
+    ax.add_patch(patches.Rectangle(lo[:2], *(hi - lo)[:2], color="0.55", lw=0))
+  s = lay.scaling
+  for i, j in lay.chasm_cells():
+    x, y = lay.cell_center(i, j)
+    ax.add_patch(patches.Rectangle((x - s / 2, y - s / 2), s, s, color="0.1", lw=0))
+  halves = [b.box.half for b in lay.blocks()]
+  block_patches = [ax.add_patch(patches.Rectangle((0, 0), 2 * h[0], 2 * h[1], color="tab:brown",
+                                                  alpha=0.8, lw=0)) for h in halves]
+  tx, ty = float(env.target[0]), float(env.target[1])
+  ax.add_patch(patches.Circle((tx, ty), float(env.success_radius), color="gold", alpha=0.3))
+  ax.plot([tx], [ty], marker="*", color="goldenrod", ms=14, ls="")
+  path_line, = ax.plot([], [], color="tab:blue", lw=1.5)
+  robot, = ax.plot([], [], marker="o", color="tab:blue", ms=9, ls="")
+  goal, = ax.plot([], [], marker="x", color="tab:red", ms=10, mew=2.5, ls="")
+  link, = ax.plot([], [], color="tab:red", lw=1, ls="--")
+  rows, cols = lay.shape
+  x0, y0 = lay.cell_center(0, 0)
+  x1, y1 = lay.cell_center(rows - 1, cols - 1)
+  ax.set(xlim=(x0 - s / 2, x1 + s / 2), ylim=(y1 + s / 2, y0 - s / 2), aspect="equal",
+         xticks=[], yticks=[])
+  title = ax.set_title("")
+  pos, goals, blocks, success = roll["pos"], roll["goal"], roll["blocks"], roll["success"]
+  frames = np.unique(np.linspace(0, len(pos) - 1, min(max_frames, len(pos))).astype(int))
+
+  def update(t):
+    path_line.set_data(pos[:t + 1, 0], pos[:t + 1, 1])
+    robot.set_data([pos[t, 0]], [pos[t, 1]])
+    goal.set_data([goals[t, 0]], [goals[t, 1]])
+    link.set_data([pos[t, 0], goals[t, 0]], [pos[t, 1], goals[t, 1]])
+    for p, b, h in zip(block_patches, blocks[t], halves):
+      p.set_xy((b[0] - h[0], b[1] - h[1]))
+    reached = bool(success[:t + 1].max())
+    title.set_text(f"{roll['task']} {roll['method']} seed {roll['seed']} "
+                   f"(trained {roll['step'] * roll['num_envs']} steps)\n"
+                   f"step {t}{'  reached the target' if reached else ''}")
+    return [path_line, robot, goal, link, title, *block_patches]
+
+  anim = animation.FuncAnimation(fig, update, frames=frames, blit=False)
+  anim.save(path, writer=animation.PillowWriter(fps=fps))
+  plt.close(fig)
+  return len(frames)
+
+
+def main(argv=None) -> int:
+  p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+  p.add_argument("dir", help="a run folder")
+  p.add_argument("--method", default=None, help="default: the run's first method")
+  p.add_argument("--seed", type=int, default=0, help="which trained seed")
+  p.add_argument("--key", type=int, default=0, help="PRNG key of the episode's reset")
+  p.add_argument("--out", default=None, help="GIF path (default: DIR/<method>_seed<N>.gif)")
+  p.add_argument("--max-frames", type=int, default=150)
+  args = p.parse_args(argv)
+  try:
+    roll = rollout(args.dir, args.method, args.seed, args.key)
+  except (ValueError, FileNotFoundError) as e:
+    p.error(str(e))
+  out = args.out or os.path.join(args.dir, f"{roll['method']}_seed{args.seed}.gif")
+  n = draw(roll, out, args.max_frames)
+  print(f"{out}: {n} frames, target reached: {bool(roll['success'].max())}")
+  return 0
+
+
+if __name__ == "__main__":
+  sys.exit(main())

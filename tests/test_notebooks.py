@@ -1,0 +1,61 @@
+"""The notebooks run top to bottom (nbclient), with their settings cell swapped for a tiny run."""
+
+import os
+
+import nbformat
+import pytest
+from nbclient import NotebookClient
+
+from tests_support import TINY_RUN
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+NOTEBOOKS = os.path.join(ROOT, "notebooks")
+
+
+def _execute(name, parameters, monkeypatch):
+  nb = nbformat.read(os.path.join(NOTEBOOKS, name), as_version=4)
+  cells = [c for c in nb.cells if "parameters" in c.metadata.get("tags", [])]
+  assert len(cells) == 1
+  cells[0].source = parameters
+  monkeypatch.setenv("JAX_COMPILATION_CACHE_DIR",
+                     os.environ.get("JAX_COMPILATION_CACHE_DIR", os.path.join(ROOT, ".jax_cache")))
+  monkeypatch.setenv("PYTHONPATH", ROOT)
+  NotebookClient(nb, timeout=600, kernel_name="python3",
+                 resources={"metadata": {"path": NOTEBOOKS}}).execute()
+  return nb
+
+
+def _outputs(nb, kind):
+  return [o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])
+          if kind in o.get("data", {})]
+
+
+@pytest.fixture(scope="module")
+def quickstart(tmp_path_factory):
+  out = str(tmp_path_factory.mktemp("nb") / "run")
+  mp = pytest.MonkeyPatch()
+  try:
+    nb = _execute("quickstart.ipynb", f'TASK = "PointMaze"\nMETHODS = ["ours", "hiro"]\n'
+                  f'OUT = {out!r}\nEXTRA = {TINY_RUN!r}', mp)
+  finally:
+    mp.undo()
+  return nb, out
+
+
+def test_quickstart_trains_plots_and_renders(quickstart):
+  nb, out = quickstart
+  assert os.path.exists(os.path.join(out, "metrics.csv"))
+  assert os.path.exists(os.path.join(out, "ours_seed0.gif"))
+  assert len(_outputs(nb, "image/png")) == 2  # success and modes figures
+  assert len(_outputs(nb, "image/gif")) == 1
+  assert any("| PointMaze | Ours |" in o["data"]["text/markdown"]
+             for o in _outputs(nb, "text/markdown"))
+
+
+def test_paper_figures_from_a_results_folder(quickstart, tmp_path, monkeypatch):
+  _, out = quickstart
+  figures = str(tmp_path / "figs")
+  nb = _execute("paper_figures.ipynb", f"RUN_DIRS = [{out!r}]\nFIGURES = {figures!r}",
+                monkeypatch)
+  assert len(_outputs(nb, "image/png")) == 2
+  assert sorted(os.listdir(figures))[0] == "pointmaze_modes.pdf"

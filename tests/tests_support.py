@@ -1,0 +1,9 @@
+"""Shared test constants (importable from tests and notebooks' tests)."""
+
+# A tiny experiment: 2 seeds x 800 steps of the point robot with 16-unit networks.
+TINY_RUN = ["--preset", "quick", "--seeds", "2", "--steps", "800", "--chunk", "200",
+            "--checkpoint-every", "200", "--episode-length", "100", "--warmup_steps", "100",
+            "--top.starting_steps", "100", "--eval_every", "200", "--eval_episodes", "2",
+            "--low.hidden", "16", "16", "--middle.hidden", "16", "16", "--low.batch_size", "8",
+            "--middle.batch_size", "8", "--middle_ppo.hidden", "16", "--top.ppo.hidden", "16",
+            "--no-progress"]
