@@ -129,6 +129,8 @@ def make_parser(task: str) -> argparse.ArgumentParser:
   p.add_argument("--resume", default=None, metavar="DIR",
                  help="continue the run in DIR with its saved configuration")
   p.add_argument("--no-progress", action="store_true", help="no progress bar")
+  p.add_argument("--tensorboard", action="store_true",
+                 help="also write TensorBoard event files to OUT/tensorboard/<method>")
   _add_field_flags(p, methods.make_config("ours", task))
   return p
 
@@ -237,8 +239,26 @@ def _progress(total, initial, desc, enabled):
               smoothing=0.1)
 
 
+def _tensorboard_writer(plan: Plan, method: str):
+  from tensorboardX import SummaryWriter  # a dependency of brax
+  return SummaryWriter(os.path.join(plan.out, "tensorboard", method))
+
+
+def _write_scalars(writer, rows):
+  """Means over seeds of every numeric column, and S_E per seed."""
+  step = rows[0]["env_step"]
+  for col in io.COLUMNS[4:]:
+    values = [r[col] for r in rows if r[col] != ""]
+    if values:
+      writer.add_scalar(col, sum(values) / len(values), step)
+  for r in rows:
+    if r["eval_success"] != "":
+      writer.add_scalar(f"eval_success/seed{r['seed']}", r["eval_success"], step)
+  writer.flush()
+
+
 def train_method(plan: Plan, method: str, metrics_file: io.MetricsFile, progress: bool,
-                 log=print) -> None:
+                 log=print, tensorboard: bool = False) -> None:
   spec, config = plan.spec, plan.configs[method]
   env = envs.make(plan.task, episode_length=spec.episode_length)
   trainer = train.make_trainer(env, config, num_seeds=spec.seeds, chunk_steps=spec.chunk)
@@ -253,6 +273,7 @@ def train_method(plan: Plan, method: str, metrics_file: io.MetricsFile, progress
     ckpts.close()
     return
   bar = _progress(spec.steps, start, f"{plan.task} {method}", progress)
+  writer = _tensorboard_writer(plan, method) if tensorboard else None
   t_start, steps_done = None, 0  # the rate leaves out the first chunk (it compiles)
   for t0 in range(start, spec.steps, spec.chunk):
     states, metrics = trainer.chunk(states, t0)
@@ -268,6 +289,8 @@ def train_method(plan: Plan, method: str, metrics_file: io.MetricsFile, progress
     evaluated = t_end >= config.first_eval_steps
     rows = io.chunk_rows(plan.task, method, t_end * config.num_envs, states, metrics, evaluated)
     metrics_file.append(rows)
+    if writer is not None:
+      _write_scalars(writer, rows)
     if t_end % spec.checkpoint_every == 0 or t_end == spec.steps:
       ckpts.save(t_end, states)
     if t_start is None:
@@ -287,6 +310,8 @@ def train_method(plan: Plan, method: str, metrics_file: io.MetricsFile, progress
       log(f"{method} step {t_end}/{spec.steps}: {status}")
   if bar:
     bar.close()
+  if writer is not None:
+    writer.close()
   ckpts.close()
 
 
@@ -314,7 +339,8 @@ def main(task: str, argv=None) -> int:
         f"steps ({plan.preset}) -> {plan.out}", flush=True)
   try:
     for method in plan.configs:
-      train_method(plan, method, metrics_file, progress=not args.no_progress)
+      train_method(plan, method, metrics_file, progress=not args.no_progress,
+                   tensorboard=args.tensorboard)
   except NonFinite as e:
     print(f"error: {e}", file=sys.stderr)
     return 1

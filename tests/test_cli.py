@@ -30,6 +30,15 @@ def reference(tmp_path_factory):
   return out
 
 
+def test_tensorboard_files_on_request(tmp_path):
+  out = tmp_path / "run"
+  assert cli.main("PointMaze", TINY + ["--method", "hiro", "--out", str(out), "--steps", "400",
+                                       "--tensorboard"]) == 0
+  events = os.listdir(out / "tensorboard" / "hiro")
+  assert len(events) == 1 and events[0].startswith("events.out.tfevents")
+  assert os.path.getsize(out / "tensorboard" / "hiro" / events[0]) > 1000
+
+
 def test_run_folder_holds_config_metrics_and_checkpoints(reference):
   config = json.load(open(os.path.join(reference, "config.json")))
   assert config["methods"] == ["ours", "ref-ppo"] and config["task"] == "PointMaze"
