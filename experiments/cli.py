@@ -287,7 +287,8 @@ def train_method(plan: Plan, method: str, metrics_file: io.MetricsFile, progress
       raise NonFinite(f"{method}: NaN or Inf in {bad[1]} of seed {bad[0]} within steps "
                       f"{t0}-{t_end}; the last good checkpoint is step {last}")
     evaluated = t_end >= config.first_eval_steps
-    rows = io.chunk_rows(plan.task, method, t_end * config.num_envs, states, metrics, evaluated)
+    rows = io.chunk_rows(plan.task, method, t_end * config.num_envs, states, metrics,
+                         spec.episode_length, evaluated)
     metrics_file.append(rows)
     if writer is not None:
       _write_scalars(writer, rows)

@@ -29,7 +29,7 @@ LOSSES = ("low/critic_loss", "low/actor_loss", "middle/critic_loss", "middle/act
           "middle_ppo/loss", "top/loss")
 COLUMNS = (
     ("task", "method", "seed", "env_step", "eval_success", "eval_distance", "eval_return",
-     "train_reward", "train_success", "train_distance")
+     "train_reward", "train_return", "train_success", "train_distance")
     + tuple(f"steps_{m}" for m in hierarchy.MODES)
     + tuple(f"cum_steps_{m}" for m in hierarchy.MODES)
     + tuple(f"p_{m}" for m in hierarchy.MODES)
@@ -63,10 +63,12 @@ def read_json(path: str) -> dict:
 
 
 def chunk_rows(task: str, method: str, env_step: int, states, metrics: dict,
-               evaluated: bool = True) -> list[dict]:
+               episode_length: int, evaluated: bool = True) -> list[dict]:
   """One metrics row per seed for a finished chunk (``metrics``: ``train.reduce_chunk``).
 
-  The eval columns hold the latest evaluation (empty until the first, ``evaluated``).
+  The eval columns hold the latest evaluation (empty until the first, ``evaluated``);
+  ``train_reward`` is the mean task reward per env step over the chunk and ``train_return``
+  that times the episode length (the return of the chunk's average training episode).
   """
   m = jax.tree.map(np.asarray, metrics)
   cum = np.asarray(states.mode_steps)
@@ -77,7 +79,8 @@ def chunk_rows(task: str, method: str, env_step: int, states, metrics: dict,
     ev = (lambda x: x[seed]) if evaluated else (lambda x: "")
     row = {"task": task, "method": method, "seed": seed, "env_step": env_step,
            "eval_success": ev(s_e), "eval_distance": ev(dist), "eval_return": ev(ret),
-           "train_reward": m["reward"][seed], "train_success": m["success"][seed],
+           "train_reward": m["reward"][seed],
+           "train_return": m["reward"][seed] * episode_length, "train_success": m["success"][seed],
            "train_distance": m["distance"][seed]}
     for j, mode in enumerate(hierarchy.MODES):
       row[f"steps_{mode}"] = m[f"count/{mode}"][seed]
