@@ -17,7 +17,6 @@ import argparse
 import time
 
 import jax
-import jax.numpy as jp
 
 import envs
 from benchmarks import common

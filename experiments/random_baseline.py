@@ -17,7 +17,6 @@ import sys
 import time
 
 import jax
-import jax.numpy as jp
 
 import envs
 

@@ -15,8 +15,6 @@ import jax.numpy as jp
 
 from nonmono_jax import buffers, hierarchy, td3
 
-ZERO_METRICS = ("critic_loss", "q", "target_q", "actor_loss")
-
 
 @dataclasses.dataclass(frozen=True)
 class Low:
