@@ -23,7 +23,7 @@ import numpy as np
 
 import envs
 from experiments import cli
-from nonmono_jax import hierarchy, io, train
+from nonmono_jax import evaluate, io, train
 
 
 def rollout(run_dir: str, method: str | None = None, seed: int = 0, key: int = 0) -> dict:
@@ -46,28 +46,15 @@ def rollout(run_dir: str, method: str | None = None, seed: int = 0, key: int = 0
   ckpts.close()
   pick = lambda tree: jax.tree.map(lambda x: x[seed], tree)
   low_params, middle_params = pick(states.low.params), pick(states.middle.params)
-  agent, c = trainer.agent, config.c
-  target = jp.asarray(env.target, jp.float32)
+  agent = trainer.agent
+  run_episode = evaluate.make_episode(env, config.c, agent.low.td3.act, agent.middle.td3.act)
 
   @jax.jit
   def episode(k):
-    s = env.reset(k)
-    g = agent.middle.td3.act(middle_params, s.obs, target)
-
-    def body(carry, t):
-      s, g = carry
-      a = agent.low.td3.act(low_params, s.obs, g)
-      s2 = env.step(s, a)
-      g2 = hierarchy.goal_transition(s.obs, g, s2.obs)
-      g2 = jp.where((t + 1) % c == 0, agent.middle.td3.act(middle_params, s2.obs, target), g2)
-      out = {"pos": s2.obs[:3], "goal": s.obs[:3] + g, "blocks": env.block_positions(s2),
-             "success": s2.metrics["success"]}
-      return (s2, g2), out
-
-    first = {"pos": s.obs[:3], "goal": s.obs[:3] + g, "blocks": env.block_positions(s),
-             "success": s.metrics["success"]}
-    _, outs = jax.lax.scan(body, (s, g), jp.arange(env.episode_length))
-    return jax.tree.map(lambda a, b: jp.concatenate([a[None], b]), first, outs)
+    s0, records = run_episode(low_params, middle_params, k)
+    first = {"pos": s0.obs[:3], "goal": records["goal"][0], "success": s0.metrics["success"],
+             "blocks": env.block_positions(s0)}
+    return {name: jp.concatenate([first[name][None], records[name]]) for name in first}
 
   out = jax.tree.map(np.asarray, episode(jax.random.PRNGKey(key)))
   return {**out, "env": env, "task": plan.task, "method": method, "seed": seed, "step": step,

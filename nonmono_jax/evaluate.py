@@ -3,7 +3,9 @@
 Each episode starts from a reset, the Middle TD3 picks a goal every c steps and the Low TD3
 follows it with the goal transition in between (as in training; the paper's code re-queries
 the Middle every step, SPEC section 5). An episode succeeds if the robot comes within the
-task's success radius at any step. Episodes run vmapped inside one ``lax.scan``.
+task's success radius at any step. Episodes run vmapped inside one ``lax.scan``;
+``make_episode`` is the episode itself, with a record of every step (also drawn by
+``experiments/render.py``).
 """
 
 from __future__ import annotations
@@ -16,32 +18,47 @@ import jax.numpy as jp
 from nonmono_jax import hierarchy
 
 
-def make_evaluate(env, c: int, low_act: Callable, middle_act: Callable,
-                  episodes: int) -> Callable:
-  """``evaluate(low_params, middle_params, key) -> (S_E, mean final distance, mean return)``.
+def make_episode(env, c: int, low_act: Callable, middle_act: Callable) -> Callable:
+  """``episode(low_params, middle_params, key) -> (reset state, per-step records)``.
 
   ``low_act(params, obs, goal)`` and ``middle_act(params, obs, target)`` are the noiseless
-  TD3 policies.
+  TD3 policies. Record t (of ``env.episode_length``): after step t the robot's ``pos``,
+  ``success``, ``distance``, ``reward`` and the ``blocks``' centres, and the world point
+  ``goal`` = s[:3] + g that the Low was sent to during step t.
   """
   target = jp.asarray(env.target, jp.float32)
 
+  def episode(low_params, middle_params, key):
+    s0 = env.reset(key)
+    g0 = middle_act(middle_params, s0.obs, target)
+
+    def body(carry, t):
+      s, g = carry
+      s2 = env.step(s, low_act(low_params, s.obs, g))
+      g2 = hierarchy.goal_transition(s.obs, g, s2.obs)
+      g2 = jp.where((t + 1) % c == 0, middle_act(middle_params, s2.obs, target), g2)
+      record = {"pos": s2.obs[:hierarchy.GOAL_SIZE], "goal": s.obs[:hierarchy.GOAL_SIZE] + g,
+                "success": s2.metrics["success"], "distance": s2.metrics["distance"],
+                "reward": s2.reward, "blocks": env.block_positions(s2)}
+      return (s2, g2), record
+
+    _, records = jax.lax.scan(body, (s0, g0), jp.arange(env.episode_length))
+    return s0, records
+
+  return episode
+
+
+def make_evaluate(env, c: int, low_act: Callable, middle_act: Callable,
+                  episodes: int) -> Callable:
+  """``evaluate(low_params, middle_params, key) -> (S_E, mean final distance, mean return)``."""
+  episode = make_episode(env, c, low_act, middle_act)
+
   def evaluate(low_params, middle_params, key):
-    def episode(key):
-      s = env.reset(key)
-      g = middle_act(middle_params, s.obs, target)
+    def one(key):
+      _, r = episode(low_params, middle_params, key)
+      return r["success"].max(), r["distance"][-1], r["reward"].sum()
 
-      def body(carry, t):
-        s, g = carry
-        a = low_act(low_params, s.obs, g)
-        s2 = env.step(s, a)
-        g2 = hierarchy.goal_transition(s.obs, g, s2.obs)
-        g2 = jp.where((t + 1) % c == 0, middle_act(middle_params, s2.obs, target), g2)
-        return (s2, g2), (s2.metrics["success"], s2.reward)
-
-      (s_end, _), (success, reward) = jax.lax.scan(body, (s, g), jp.arange(env.episode_length))
-      return success.max(), s_end.metrics["distance"], reward.sum()
-
-    success, distance, ret = jax.vmap(episode)(jax.random.split(key, episodes))
+    success, distance, ret = jax.vmap(one)(jax.random.split(key, episodes))
     return success.mean(), distance.mean(), ret.mean()
 
   return evaluate
