@@ -31,7 +31,7 @@ from flax import struct
 
 from nonmono_jax import buffers, hierarchy, ppo, td3
 from nonmono_jax import evaluate as evaluate_lib
-from nonmono_jax.config import AgentConfig, TopConfig  # noqa: F401  (re-exported)
+from nonmono_jax.config import AgentConfig
 from nonmono_jax.low import Low, make_low
 from nonmono_jax.middle import Middle, Segment, make_middle
 from nonmono_jax.switch import InformedSwitch, TriggerState, make_informed_switch
@@ -88,6 +88,11 @@ def _gated(pred, fn, state):
     return s, jax.tree.map(lambda x: jp.zeros(x.shape, x.dtype), shapes)
 
   return jax.lax.cond(pred, fn, skip, state)
+
+
+def _write_slot(rollout, j, steps):
+  """Rollout (E, N, ...) with slot j of every env set to ``steps`` (E, ...)."""
+  return jax.tree.map(lambda r, x: r.at[:, j].set(x), rollout, steps)
 
 
 def _prefixed(prefix, metrics, ran):
@@ -159,6 +164,7 @@ def make_agent(env, config: AgentConfig = AgentConfig()) -> Agent:
     i = t % c
     episode_end = (t + 1) % L == 0
     segment_end = i == c - 1
+    horizon_end = has_top and (t % top_cfg.horizon == top_cfg.horizon - 1)
 
     # Low acts in every env; the env steps.
     s = state.env.obs
@@ -205,8 +211,8 @@ def make_agent(env, config: AgentConfig = AgentConfig()) -> Agent:
       start_t = t + 1 - top_cfg.horizon
       tr, m = jax.vmap(top.close, in_axes=(0, None, None))(
           state.horizon, start_t < live_from, episode_end)
-      j = (t // top_cfg.horizon) % top_cfg.rollout_length
-      rollout = jax.tree.map(lambda r, x: r.at[:, j].set(x), state.top_rollout, tr)
+      slot = (t // top_cfg.horizon) % top_cfg.rollout_length
+      rollout = _write_slot(state.top_rollout, slot, tr)
       horizon = jax.vmap(top.start, in_axes=(None, 0, 0, None))(
           state.top.params, state.env.obs, jax.random.split(kh, E), t + 1 < live_from)
       probs = jax.vmap(lambda x: jp.exp(jax.vmap(
@@ -221,12 +227,11 @@ def make_agent(env, config: AgentConfig = AgentConfig()) -> Agent:
       items, steps = jax.vmap(middle.close, in_axes=(0, None))(state.segment, episode_end)
       state = state.replace(middle_buffer=buffers.add(state.middle_buffer, items))
       if has_ppo:
-        j = (t // c) % config.middle_rollout_length
-        state = state.replace(middle_rollout=jax.tree.map(
-            lambda r, x: r.at[:, j].set(x), state.middle_rollout, steps))
+        slot = (t // c) % config.middle_rollout_length
+        state = state.replace(middle_rollout=_write_slot(state.middle_rollout, slot, steps))
       m = {}
       if has_top:
-        state, m = _gated(t % top_cfg.horizon == top_cfg.horizon - 1, end_horizon, state)
+        state, m = _gated(horizon_end, end_horizon, state)
       obs = state.env.obs
       goal, log_prob = goals(state, obs, state.mode, kg, t + 1 < config.warmup_steps, t)
       return state.replace(goal=goal,
@@ -234,8 +239,7 @@ def make_agent(env, config: AgentConfig = AgentConfig()) -> Agent:
 
     state, horizon_m = _gated(segment_end, end_segment, state)
     if has_top:
-      metrics.update(_prefixed("horizon", horizon_m,
-                               segment_end & (t % top_cfg.horizon == top_cfg.horizon - 1)))
+      metrics.update(_prefixed("horizon", horizon_m, segment_end & horizon_end))
 
     # Learning, after warm-up, each on its own clock.
     def low_update(state):

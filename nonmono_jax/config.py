@@ -30,6 +30,11 @@ def _check_triple(name, values, lo=None, hi=None):
       raise ValueError(f"{name} entries must be in [{lo}, {hi}], got {values}")
 
 
+def _check_multiple(name, value, of_name, of):
+  if value < 1 or value % of:
+    raise ValueError(f"{name} must be a positive multiple of {of_name} ({of}), got {value}")
+
+
 @dataclasses.dataclass(frozen=True)
 class TopConfig:
   """The Top level: PPO over g_expl_mode in (TD3, PPO, RANDOM), one choice per ``horizon``."""
@@ -55,9 +60,7 @@ class TopConfig:
       raise ValueError(f"top.s_o_start must be in [0, 1], got {self.s_o_start}")
     if self.starting_steps < 0:
       raise ValueError(f"top.starting_steps must be >= 0, got {self.starting_steps}")
-    if self.train_every < 1 or self.train_every % self.horizon:
-      raise ValueError(f"top.train_every must be a positive multiple of top.horizon "
-                       f"({self.horizon}), got {self.train_every}")
+    _check_multiple("top.train_every", self.train_every, "top.horizon", self.horizon)
     if not self.ppo.discrete:
       raise ValueError("top.ppo must be discrete (the Top picks one of 3 modes)")
 
@@ -103,17 +106,14 @@ class AgentConfig:
                        f"got {self.goal_range}")
     if any(r < 0 for r in self.goal_range):
       raise ValueError(f"goal_range must be >= 0, got {self.goal_range}")
-    for name in ("warmup_steps",):
-      if getattr(self, name) < 0:
-        raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
+    if self.warmup_steps < 0:
+      raise ValueError(f"warmup_steps must be >= 0, got {self.warmup_steps}")
     for name in ("eval_every", "eval_episodes", "num_envs", "low_updates", "middle_updates"):
       if getattr(self, name) < 1:
         raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
     if self.middle_goal_noise < 0:
       raise ValueError(f"middle_goal_noise must be >= 0, got {self.middle_goal_noise}")
-    if self.middle_ppo_every < 1 or self.middle_ppo_every % self.c:
-      raise ValueError(f"middle_ppo_every must be a positive multiple of c ({self.c}), "
-                       f"got {self.middle_ppo_every}")
+    _check_multiple("middle_ppo_every", self.middle_ppo_every, "c", self.c)
     if self.top.horizon % self.c:
       raise ValueError(f"top.horizon ({self.top.horizon}) must be a multiple of c ({self.c})")
     if self.middle_ppo.discrete:
