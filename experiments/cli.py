@@ -31,6 +31,7 @@ import envs
 from nonmono_jax import config as config_lib
 from nonmono_jax import hierarchy, io, methods, train
 
+EXIT_NON_FINITE, EXIT_TIME_LIMIT = 1, 3
 PACKAGES = ("jax", "jaxlib", "mujoco", "mujoco-mjx", "brax", "flax", "optax", "orbax-checkpoint",
             "numpy", "nonmono-jax")
 
@@ -124,10 +125,19 @@ def make_parser(task: str) -> argparse.ArgumentParser:
   p.add_argument("--checkpoint-every", type=int, default=None,
                  help="steps between checkpoints, a multiple of --chunk (default: preset)")
   p.add_argument("--episode-length", type=int, default=None, help="(default: preset)")
+  p.add_argument("--envs-per-seed", type=int, default=None, metavar="E",
+                 help="E envs per seed with the preset's schedule and gradient samples per env "
+                      "step (methods.widen; --steps etc. then count vector steps of E envs)")
+  p.add_argument("--grad-steps", type=int, default=None, metavar="U",
+                 help="with --envs-per-seed: TD3 updates per vector step, each of batch x E/U "
+                      "(default E: the paper's updates exactly)")
   p.add_argument("--seed", type=int, default=0, help="PRNG seed of the run")
   p.add_argument("--out", default=None, help="output folder (default: runs/<task>-<time>)")
   p.add_argument("--resume", default=None, metavar="DIR",
                  help="continue the run in DIR with its saved configuration")
+  p.add_argument("--time-limit", type=float, default=None, metavar="SECONDS",
+                 help="stop, checkpointed, before a chunk that would end past this many seconds "
+                      f"of wall time; exit code {EXIT_TIME_LIMIT}, continue with --resume")
   p.add_argument("--no-progress", action="store_true", help="no progress bar")
   p.add_argument("--tensorboard", action="store_true",
                  help="also write TensorBoard event files to OUT/tensorboard/<method>")
@@ -144,15 +154,22 @@ class Plan:
   spec: methods.RunSpec
   configs: dict  # method -> AgentConfig
   overrides: dict
+  widen: dict = dataclasses.field(default_factory=dict)  # --envs-per-seed, --grad-steps
 
 
 def plan_from_args(task: str, args: argparse.Namespace) -> Plan:
   """Every config built and validated; raises ValueError naming the field."""
   overrides = _nest({k[len("field:"):]: v for k, v in vars(args).items()
                      if k.startswith("field:")})
+  envs_per_seed = getattr(args, "envs_per_seed", None)
+  grad_steps = getattr(args, "grad_steps", None)
+  if grad_steps is not None and envs_per_seed is None:
+    raise ValueError("--grad-steps needs --envs-per-seed")
   configs, spec = {}, None
   for method in args.method:
     config, s = methods.make_preset(args.preset, method, task)
+    if envs_per_seed is not None:
+      config, s = methods.widen(config, s, envs_per_seed, grad_steps)
     configs[method] = apply_overrides(config, overrides)
     spec = spec or s
   changes = {k: v for k, v in (("steps", args.steps), ("seeds", args.seeds),
@@ -179,7 +196,8 @@ def plan_from_args(task: str, args: argparse.Namespace) -> Plan:
   stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
   out = args.out or os.path.join("runs", f"{task.lower()}-{stamp}")
   return Plan(task=task, preset=args.preset, seed=args.seed, out=out, spec=spec,
-              configs=configs, overrides=overrides)
+              configs=configs, overrides=overrides,
+              widen={"envs_per_seed": envs_per_seed, "grad_steps": grad_steps})
 
 
 def _versions() -> dict:
@@ -195,7 +213,7 @@ def _versions() -> dict:
 def plan_to_json(plan: Plan) -> dict:
   return {"task": plan.task, "preset": plan.preset, "seed": plan.seed,
           "methods": list(plan.configs), "run": io.to_jsonable(plan.spec),
-          "overrides": io.to_jsonable(plan.overrides),
+          "overrides": io.to_jsonable(plan.overrides), "widen": plan.widen,
           "configs": {m: io.to_jsonable(c) for m, c in plan.configs.items()},
           "versions": _versions(), "python": platform.python_version(),
           "device": str(jax.devices()[0].device_kind), "platform": jax.default_backend(),
@@ -207,7 +225,8 @@ def plan_from_json(payload: dict, out: str) -> Plan:
   task = payload["task"]
   args = argparse.Namespace(method=payload["methods"], preset=payload["preset"],
                             seeds=None, steps=None, chunk=None, checkpoint_every=None,
-                            episode_length=None, seed=payload["seed"], out=out)
+                            episode_length=None, seed=payload["seed"], out=out,
+                            **payload.get("widen", {}))
   plan = plan_from_args(task, args)
   plan.spec = methods.RunSpec(**payload["run"])
   plan.configs = {m: apply_overrides(c, _lists_to_tuples(payload["overrides"]))
@@ -229,6 +248,32 @@ def _lists_to_tuples(d):
 
 class NonFinite(RuntimeError):
   pass
+
+
+class TimeLimit(RuntimeError):
+  pass
+
+
+@dataclasses.dataclass
+class Clock:
+  """Wall-clock budget of one process: may the next chunk start?
+
+  A chunk's duration is estimated by the latest one of the same method; a method's first
+  chunk (which compiles) by the first chunk of the method before it, or 0 if none ran yet.
+  """
+
+  deadline: float | None = None  # time.monotonic() value
+  first_chunk_s: float = 0.0
+
+  @classmethod
+  def starting_now(cls, limit_s: float | None) -> "Clock":
+    return cls(None if limit_s is None else time.monotonic() + limit_s)
+
+  def allows(self, chunk_s: float | None) -> bool:
+    if self.deadline is None:
+      return True
+    estimate = self.first_chunk_s if chunk_s is None else chunk_s
+    return time.monotonic() + estimate <= self.deadline
 
 
 def _progress(total, initial, desc, enabled):
@@ -258,7 +303,7 @@ def _write_scalars(writer, rows):
 
 
 def train_method(plan: Plan, method: str, metrics_file: io.MetricsFile, progress: bool,
-                 log=print, tensorboard: bool = False) -> None:
+                 log=print, tensorboard: bool = False, clock: Clock | None = None) -> None:
   spec, config = plan.spec, plan.configs[method]
   env = envs.make(plan.task, episode_length=spec.episode_length)
   trainer = train.make_trainer(env, config, num_seeds=spec.seeds, chunk_steps=spec.chunk)
@@ -274,8 +319,19 @@ def train_method(plan: Plan, method: str, metrics_file: io.MetricsFile, progress
     return
   bar = _progress(spec.steps, start, f"{plan.task} {method}", progress)
   writer = _tensorboard_writer(plan, method) if tensorboard else None
+  clock = clock or Clock()
   t_start, steps_done = None, 0  # the rate leaves out the first chunk (it compiles)
+  chunk_s = None  # the latest chunk's wall time (None before the first)
   for t0 in range(start, spec.steps, spec.chunk):
+    if not clock.allows(chunk_s):
+      if t0 > start and ckpts.latest_step() != t0:
+        ckpts.save(t0, states)
+      ckpts.close()
+      if bar:
+        bar.close()
+      raise TimeLimit(f"{method}: stopped at step {t0} of {spec.steps} for the time limit "
+                      f"(checkpointed); continue with --resume {plan.out}")
+    t_chunk = time.monotonic()
     states, metrics = trainer.chunk(states, t0)
     t_end = t0 + spec.chunk
     bad = io.first_non_finite(states, metrics)
@@ -294,7 +350,9 @@ def train_method(plan: Plan, method: str, metrics_file: io.MetricsFile, progress
       _write_scalars(writer, rows)
     if t_end % spec.checkpoint_every == 0 or t_end == spec.steps:
       ckpts.save(t_end, states)
+    chunk_s = time.monotonic() - t_chunk  # io.first_non_finite above waited for the chunk
     if t_start is None:
+      clock.first_chunk_s = max(clock.first_chunk_s, chunk_s)
       t_start, rate = time.perf_counter(), float("nan")
     else:
       steps_done += spec.chunk
@@ -338,12 +396,16 @@ def main(task: str, argv=None) -> int:
   metrics_file = io.MetricsFile(os.path.join(plan.out, "metrics.csv"))
   print(f"{plan.task}: {', '.join(plan.configs)} x {plan.spec.seeds} seeds x {plan.spec.steps} "
         f"steps ({plan.preset}) -> {plan.out}", flush=True)
+  clock = Clock.starting_now(args.time_limit)
   try:
     for method in plan.configs:
       train_method(plan, method, metrics_file, progress=not args.no_progress,
-                   tensorboard=args.tensorboard)
+                   tensorboard=args.tensorboard, clock=clock)
   except NonFinite as e:
     print(f"error: {e}", file=sys.stderr)
-    return 1
+    return EXIT_NON_FINITE
+  except TimeLimit as e:
+    print(f"time limit: {e}", flush=True)
+    return EXIT_TIME_LIMIT
   print(f"done: {os.path.join(plan.out, 'metrics.csv')}", flush=True)
   return 0
