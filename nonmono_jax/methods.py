@@ -154,3 +154,53 @@ def make_preset(preset: str, method: str, task: str) -> tuple[AgentConfig, RunSp
                                                    if k != "top"})
   return config, RunSpec(steps=6_000, seeds=1, episode_length=t.episode_length, chunk=1_000,
                          checkpoint_every=2_000)
+
+
+def widen(config: AgentConfig, spec: RunSpec, envs_per_seed: int,
+          grad_steps: int | None = None) -> tuple[AgentConfig, RunSpec]:
+  """``envs_per_seed`` envs per seed at the same schedule and data use per *env* step.
+
+  The paper runs one env per seed. To fill a GPU, a seed can run E envs, but ``num_envs``
+  alone keeps every schedule in vector steps and one gradient step per vector step
+  (README, "Several envs per seed"). This keeps the paper's numbers per env step instead:
+
+  - schedules in env steps become vector steps / E (rounded up): warm-up, the starting mode,
+    evaluation, the PPO std decay, the run's length and its checkpoints;
+  - gradient samples per env step stay the paper's: per vector step the Low makes
+    ``grad_steps`` (U) TD3 updates of batch ``low.batch_size * E / U``, and per Middle horizon
+    the Middle U updates of batch ``middle.batch_size * E / U``. U = E repeats the paper's
+    update exactly; a smaller U takes fewer, larger steps (cheaper on a GPU).
+
+  What does not change: the Middle and Top horizons (c, top.horizon) and episodes are per
+  env; the PPO levels train every ``middle_ppo_every`` / ``top.train_every`` vector steps on
+  the E envs' latest transitions, so they see the same data per env step in E-times larger,
+  E-times fewer updates.
+  """
+  E = envs_per_seed
+  U = E if grad_steps is None else grad_steps
+  if E < 1:
+    raise ValueError(f"--envs-per-seed must be >= 1, got {E}")
+  if not 1 <= U <= E:
+    raise ValueError(f"--grad-steps must be in [1, --envs-per-seed ({E})], got {U}")
+  if config.num_envs != 1 or config.low_updates != 1 or config.middle_updates != 1:
+    raise ValueError("widen applies to a preset with one env and one update per step")
+
+  def vec(n):  # env steps -> vector steps
+    return -(-n // E)
+
+  def batch(cfg):
+    return dataclasses.replace(cfg, batch_size=-(-cfg.batch_size * E // U))
+
+  top = dataclasses.replace(
+      config.top, starting_steps=vec(config.top.starting_steps),
+      ppo=dataclasses.replace(config.top.ppo, std_decay_every=vec(config.top.ppo.std_decay_every)))
+  config = dataclasses.replace(
+      config, num_envs=E, low_updates=U, middle_updates=U, low=batch(config.low),
+      middle=batch(config.middle), warmup_steps=vec(config.warmup_steps),
+      eval_every=vec(config.eval_every), top=top,
+      middle_ppo=dataclasses.replace(config.middle_ppo,
+                                     std_decay_every=vec(config.middle_ppo.std_decay_every)))
+  chunk = vec(spec.chunk)
+  steps = -(-vec(spec.steps) // chunk) * chunk
+  every = max(chunk, vec(spec.checkpoint_every) // chunk * chunk)
+  return config, dataclasses.replace(spec, steps=steps, chunk=chunk, checkpoint_every=every)

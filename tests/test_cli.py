@@ -99,6 +99,40 @@ def test_sigkill_leaves_a_resumable_run(reference, tmp_path):
   assert _rows(out) == _rows(reference)
 
 
+def test_time_limit_stops_checkpointed_and_resume_completes_the_run(reference, tmp_path,
+                                                                   monkeypatch, capsys):
+  out = str(tmp_path / "run")
+  argv = TINY + ["--method", "ours", "ref-ppo", "--out", out, "--checkpoint-every", "400",
+                 "--time-limit", "60"]
+  starts = []
+
+  def allows(self, chunk_s):  # the clock runs out after 3 chunks of each process
+    starts.append(chunk_s)
+    return len(starts) <= 3
+
+  monkeypatch.setattr(cli.Clock, "allows", allows)
+  # Stop 1 inside ours, between checkpoints (600 is saved for the stop); stop 2 inside ref-ppo,
+  # on a checkpoint step (400, already saved).
+  assert cli.main("PointMaze", argv) == cli.EXIT_TIME_LIMIT
+  assert "ours: stopped at step 600 of 800" in capsys.readouterr().out
+  assert sorted(os.listdir(os.path.join(out, "checkpoints", "ours"))) == ["400", "600"]
+  starts.clear()
+  assert cli.main("PointMaze", ["--resume", out, "--no-progress", "--time-limit", "60"]) == 3
+  assert "ref-ppo: stopped at step 400 of 800" in capsys.readouterr().out
+  starts.clear()
+  monkeypatch.undo()
+  assert cli.main("PointMaze", ["--resume", out, "--no-progress"]) == 0
+  assert _rows(out) == _rows(reference)
+
+
+def test_clock_estimates_the_next_chunk_by_the_last():
+  clock = cli.Clock.starting_now(100.0)
+  assert clock.allows(None) and clock.allows(99.0) and not clock.allows(101.0)
+  clock.first_chunk_s = 150.0  # a method's first chunk compiles: estimated by the last first one
+  assert not clock.allows(None)
+  assert cli.Clock.starting_now(None).allows(1e9)
+
+
 @pytest.mark.parametrize("argv,message", [
     (["--method", "sac"], "invalid choice"),
     (["--preset", "huge"], "invalid choice"),
@@ -207,3 +241,36 @@ def test_render_writes_a_gif_of_a_trained_policy(reference, tmp_path, capsys):
   with pytest.raises(SystemExit) as err:
     render.main([reference, "--method", "hiro"])
   assert err.value.code == 2
+
+
+def test_widen_keeps_the_paper_per_env_step():
+  from nonmono_jax import methods
+
+  config, spec = methods.make_preset("paper", "ours", "AntPush")
+  wide, wspec = methods.widen(config, spec, 64, 8)
+  assert (wide.num_envs, wide.low_updates, wide.middle_updates) == (64, 8, 8)
+  # gradient samples per env step: 8 x 800 per 64 env steps = the paper's 100 per env step
+  assert wide.low.batch_size == wide.middle.batch_size == 800
+  assert wide.warmup_steps * 64 >= 100_000 > (wide.warmup_steps - 1) * 64
+  assert wide.top.starting_steps * 64 >= 250_000 > (wide.top.starting_steps - 1) * 64
+  assert wide.middle_ppo.std_decay_every == -(-250_000 // 64)
+  assert wspec.steps * 64 >= 3_150_000 and wspec.steps % wspec.chunk == 0
+  assert wspec.checkpoint_every % wspec.chunk == 0
+  assert (wide.c, wide.top.horizon, wide.top.train_every) == (10, 50, 400)  # per env
+  exact, _ = methods.widen(config, spec, 16)
+  assert (exact.low_updates, exact.low.batch_size) == (16, 100)  # U = E: the paper's updates
+  with pytest.raises(ValueError, match="--grad-steps must be in"):
+    methods.widen(config, spec, 16, 32)
+  with pytest.raises(ValueError, match="--envs-per-seed must be >= 1"):
+    methods.widen(config, spec, 0)
+
+
+def test_a_widened_run_resumes_with_its_saved_plan(tmp_path):
+  args = cli.make_parser("PointMaze").parse_args(
+      ["--method", "ours", "--envs-per-seed", "4", "--grad-steps", "2", "--out", str(tmp_path)])
+  plan = cli.plan_from_args("PointMaze", args)
+  again = cli.plan_from_json(json.loads(json.dumps(cli.plan_to_json(plan))), str(tmp_path))
+  assert again.configs == plan.configs and again.spec == plan.spec
+  assert plan.configs["ours"].num_envs == 4 and plan.spec.steps == 10_000
+  with pytest.raises(ValueError, match="--grad-steps needs --envs-per-seed"):
+    cli.plan_from_args("PointMaze", cli.make_parser("PointMaze").parse_args(["--grad-steps", "2"]))
