@@ -20,8 +20,13 @@ def machine() -> dict:
           "python": platform.python_version(), "jax": jax.__version__}
 
 
-def write_result(name: str, out_dir: str, argv: list[str] | None, **payload) -> str:
-  """Write ``<out_dir>/<name>_<platform>_<date>.json`` with the command that made it."""
+def write_result(name: str, out_dir: str, argv: list[str] | None, quiet: bool = False,
+                 **payload) -> str:
+  """Write ``<out_dir>/<name>_<platform>_<date>.json`` with the command that made it.
+
+  Benchmarks call it after every row (``quiet``) and once at the end, so a run killed at a
+  time limit keeps the rows it measured (``"complete": false`` until the last call).
+  """
   date = datetime.date.today().isoformat()
   info = machine()
   args = sys.argv[1:] if argv is None else argv
@@ -29,7 +34,27 @@ def write_result(name: str, out_dir: str, argv: list[str] | None, **payload) -> 
             "command": " ".join(["python -m", f"benchmarks.{name}", *args]), **payload}
   os.makedirs(out_dir, exist_ok=True)
   path = os.path.join(out_dir, f"{name}_{info['platform']}_{date}.json")
-  with open(path, "w") as f:
+  with open(path + ".tmp", "w") as f:
     json.dump(result, f, indent=2)
-  print("wrote", path)
+  os.replace(path + ".tmp", path)
+  if not quiet:
+    print("wrote", path)
   return path
+
+
+def memory_stats() -> dict:
+  """The accelerator's allocator statistics (``peak_bytes_in_use`` is the process's peak so
+  far); empty on a CPU, whose runtime keeps none."""
+  stats = jax.devices()[0].memory_stats() or {}
+  return {k: stats[k] for k in ("peak_bytes_in_use", "bytes_in_use", "bytes_limit") if k in stats}
+
+
+def program_bytes(compiled) -> dict:
+  """Device memory of one compiled program, from XLA's own accounting: its arguments, outputs
+  and temporaries (less what the outputs alias: donated inputs)."""
+  m = compiled.memory_analysis()
+  if m is None:
+    return {}
+  out = {k: int(getattr(m, f"{k}_size_in_bytes")) for k in ("argument", "output", "temp", "alias")}
+  out["total"] = out["argument"] + out["output"] + out["temp"] - out["alias"]
+  return out

@@ -6,9 +6,10 @@ the same model, integrator (RK4, 0.02 s x 5), solver settings and contact filter
 tasks, on a flat floor with no maze: the ratio maze / bare is the cost of the maze's contacts.
 
     python -m benchmarks.env_throughput                 # CPU: batches 1, 16, 256
-    python -m benchmarks.env_throughput --batches 1 16 256 4096   # on a GPU
+    python -m benchmarks.env_throughput                 # GPU: batches 1, 16, 256, ..., 16384
 
-Writes ``benchmarks/results/env_throughput_<platform>_<date>.json`` and prints a table.
+Writes ``benchmarks/results/env_throughput_<platform>_<date>.json`` after every row (the last
+write sets ``"complete": true``) and prints a table.
 """
 
 from __future__ import annotations
@@ -72,15 +73,17 @@ def main(argv=None):
   p.add_argument("--out", default=common.RESULTS)
   args = p.parse_args(argv)
   on_gpu = jax.default_backend() == "gpu"
-  batches = args.batches or ([1, 16, 256, 4096] if on_gpu else [1, 16, 256])
+  batches = args.batches or ([1, 16, 256, 1024, 4096, 16384] if on_gpu else [1, 16, 256])
   rows = []
   for name in args.envs:
     env = make_env(name)
     for b in batches:
-      r = {"env": name, **measure(env, b, args.steps, args.repeats)}
+      r = {"env": name, **measure(env, b, args.steps, args.repeats), **common.memory_stats()}
       rows.append(r)
       print(f"{name:9s} batch {b:6d}: {r['steps_per_s']:10.1f} steps/s "
             f"(compile+first {r['compile_plus_first_s']:.1f} s)", flush=True)
+      common.write_result("env_throughput", args.out, argv, quiet=True, complete=False,
+                          results=rows)
   ratios = {}
   by = {(r["env"], r["batch"]): r["steps_per_s"] for r in rows}
   for name in ("AntPush", "AntFall"):
@@ -89,7 +92,8 @@ def main(argv=None):
         ratios[f"{name}/AntFlat@{b}"] = by[(name, b)] / by[("AntFlat", b)]
   for k, v in ratios.items():
     print(f"{k}: {v:.2f}")
-  common.write_result("env_throughput", args.out, argv, results=rows, ratios_to_bare_ant=ratios)
+  common.write_result("env_throughput", args.out, argv, complete=True, results=rows,
+                      ratios_to_bare_ant=ratios)
 
 
 if __name__ == "__main__":

@@ -10,8 +10,17 @@ modes live. Seeds are vmapped; one timed call is a jitted chunk of ``--chunk`` s
     python -m benchmarks.train_throughput                     # ours and HIRO, PointPush, AntPush
     python -m benchmarks.train_throughput --envs PointPush --methods ours --seeds 1 4 16
     python -m benchmarks.train_throughput --num-envs 16        # envs per seed (GPU filling)
+    python -m benchmarks.train_throughput --envs AntPush --seeds 1 5 16 --num-envs 1 16 64 256
 
-Writes ``benchmarks/results/train_throughput_<platform>_<date>.json`` and prints a table.
+With E envs per seed the updates are the paper's per vector step (``num_envs`` alone: one
+Low update per vector step), unless ``--grad-steps U`` is given: then U updates per vector
+step of batch 100 E / U (``methods.widen``'s data use per env step). ``compile_s`` is the
+chunk's lowering and XLA compilation alone; ``memory`` is XLA's accounting of the chunk
+program (arguments + outputs + temporaries - donated), and on a GPU ``peak_bytes_in_use``
+the process's allocator peak so far.
+
+Writes ``benchmarks/results/train_throughput_<platform>_<date>.json`` after every row (the
+last write sets ``"complete": true``) and prints a table.
 """
 
 from __future__ import annotations
@@ -28,20 +37,28 @@ from nonmono_jax import methods, train
 
 
 def measure(env_name: str, method: str, seeds: int, num_envs: int, chunk: int,
-            repeats: int, time_eval: bool) -> dict:
+            repeats: int, time_eval: bool, grad_steps: int | None = None) -> dict:
   env = envs.make(env_name, episode_length=1000)
   base = methods.make_config(method, env_name.replace("Point", "Ant"))  # the paper's settings
+  if grad_steps is not None:
+    spec = methods.RunSpec(steps=chunk, seeds=seeds, episode_length=1000, chunk=chunk,
+                           checkpoint_every=chunk)
+    base, _ = methods.widen(base, spec, num_envs, grad_steps)
   config = dataclasses.replace(base, warmup_steps=0, num_envs=num_envs, eval_every=10**9,
                                top=dataclasses.replace(base.top, starting_steps=0))
   trainer = train.make_trainer(env, config, num_seeds=seeds, chunk_steps=chunk)
-  t0 = time.perf_counter()
   states = jax.block_until_ready(trainer.init(jax.random.PRNGKey(0)))
-  states, _ = jax.block_until_ready(trainer.chunk(states, 0))
+  t0 = time.perf_counter()
+  compiled = trainer.chunk.lower(states, 0).compile()
   compile_s = time.perf_counter() - t0
+  memory = common.program_bytes(compiled)
+  t0 = time.perf_counter()
+  states, _ = jax.block_until_ready(compiled(states, 0))
+  first_s = time.perf_counter() - t0
   best = float("inf")
   for r in range(repeats):
     t0 = time.perf_counter()
-    states, _ = jax.block_until_ready(trainer.chunk(states, (r + 1) * chunk))
+    states, _ = jax.block_until_ready(compiled(states, (r + 1) * chunk))
     best = min(best, time.perf_counter() - t0)
   eval_s = None
   if time_eval:
@@ -52,8 +69,10 @@ def measure(env_name: str, method: str, seeds: int, num_envs: int, chunk: int,
     jax.block_until_ready(evaluate(states.low.params, states.middle.params, key))
     eval_s = time.perf_counter() - t0
   return {"env": env_name, "method": method, "seeds": seeds, "envs_per_seed": num_envs,
-          "env_steps_per_s": seeds * num_envs * chunk / best, "compile_plus_first_s": compile_s,
-          "timed_steps_per_seed": chunk * num_envs,
+          "low_updates": config.low_updates, "low_batch": config.low.batch_size,
+          "env_steps_per_s": seeds * num_envs * chunk / best, "compile_s": compile_s,
+          "first_chunk_s": first_s, "timed_steps_per_seed": chunk * num_envs,
+          "memory": memory, **common.memory_stats(),
           "eval_s": eval_s, "eval_env_steps": seeds * config.eval_episodes * 1000}
 
 
@@ -63,10 +82,19 @@ def main(argv=None):
   p.add_argument("--methods", nargs="+", default=["ours", "hiro"], choices=methods.METHODS)
   p.add_argument("--seeds", nargs="+", type=int, default=[1, 4, 16])
   p.add_argument("--num-envs", nargs="+", type=int, default=[1], help="envs per seed")
+  p.add_argument("--grad-steps", type=int, default=None,
+                 help="TD3 updates per vector step, of batch 100 E / U (methods.widen); "
+                      "default: one update of batch 100 per vector step")
   p.add_argument("--chunk", type=int, default=200, help="env steps per timed call")
   p.add_argument("--repeats", type=int, default=2)
   p.add_argument("--out", default=common.RESULTS)
   args = p.parse_args(argv)
+  settings = ("paper: Low TD3 update every vector step (batch 100, 300-300), Middle TD3 + "
+              "relabelling every 10 steps; ours: + Middle PPO every 30, Top PPO every 400, "
+              "Top mode every 50; warm-up and starting mode 0; evaluation timed apart")
+  if args.grad_steps is not None:
+    settings += f"; with E envs per seed: {args.grad_steps} TD3 updates of batch 100 E / " \
+                f"{args.grad_steps} per vector step (methods.widen)"
   rows = []
   for name in args.envs:
     for method in args.methods:
@@ -74,18 +102,17 @@ def main(argv=None):
         for s in args.seeds:
           # One evaluation is 50 episodes x 1000 steps per seed: minutes of MJX on a CPU.
           time_eval = name.startswith("Point") or jax.default_backend() != "cpu"
-          r = measure(name, method, s, e, args.chunk, args.repeats, time_eval)
+          r = measure(name, method, s, e, args.chunk, args.repeats, time_eval, args.grad_steps)
           rows.append(r)
+          mib = r["memory"].get("total", 0) / 2**20
           print(f"{name:9s} {method:5s} seeds {s:3d} x envs {e:3d}: "
-                f"{r['env_steps_per_s']:8.1f} env steps/s (compile+first "
-                f"{r['compile_plus_first_s']:.1f} s; one evaluation {r['eval_s']} s)",
-                flush=True)
-  common.write_result(
-      "train_throughput", args.out, argv,
-      settings="paper: Low TD3 update every vector step (batch 100, 300-300), Middle TD3 + "
-               "relabelling every 10 steps; ours: + Middle PPO every 30, Top PPO every 400, "
-               "Top mode every 50; warm-up and starting mode 0; evaluation timed apart",
-      results=rows)
+                f"{r['env_steps_per_s']:8.1f} env steps/s (compile {r['compile_s']:.1f} s, "
+                f"first chunk {r['first_chunk_s']:.1f} s, program {mib:.0f} MiB; one "
+                f"evaluation {r['eval_s']} s)", flush=True)
+          common.write_result("train_throughput", args.out, argv, quiet=True, complete=False,
+                              settings=settings, results=rows)
+  common.write_result("train_throughput", args.out, argv, complete=True, settings=settings,
+                      results=rows)
 
 
 if __name__ == "__main__":
