@@ -259,15 +259,25 @@ class Clock:
   """Wall-clock budget of one process: may the next chunk start?
 
   A chunk's duration is estimated by the latest one of the same method; a method's first
-  chunk (which compiles) by the first chunk of the method before it, or 0 if none ran yet.
+  chunk in a process (which compiles, or loads the compiled program from the cache) by the
+  longest first chunk seen so far in this run, kept in ``OUT/timing.json`` so that a resumed
+  process knows it too (0 before any).
   """
 
   deadline: float | None = None  # time.monotonic() value
   first_chunk_s: float = 0.0
+  path: str | None = None  # timing.json of the run
 
   @classmethod
-  def starting_now(cls, limit_s: float | None) -> "Clock":
-    return cls(None if limit_s is None else time.monotonic() + limit_s)
+  def starting_now(cls, limit_s: float | None, path: str | None = None) -> "Clock":
+    first = io.read_json(path)["first_chunk_s"] if path and os.path.exists(path) else 0.0
+    return cls(None if limit_s is None else time.monotonic() + limit_s, first, path)
+
+  def saw_first_chunk(self, seconds: float) -> None:
+    if seconds > self.first_chunk_s:
+      self.first_chunk_s = seconds
+      if self.path:
+        io.write_json(self.path, {"first_chunk_s": seconds})
 
   def allows(self, chunk_s: float | None) -> bool:
     if self.deadline is None:
@@ -352,7 +362,7 @@ def train_method(plan: Plan, method: str, metrics_file: io.MetricsFile, progress
       ckpts.save(t_end, states)
     chunk_s = time.monotonic() - t_chunk  # io.first_non_finite above waited for the chunk
     if t_start is None:
-      clock.first_chunk_s = max(clock.first_chunk_s, chunk_s)
+      clock.saw_first_chunk(chunk_s)
       t_start, rate = time.perf_counter(), float("nan")
     else:
       steps_done += spec.chunk
@@ -396,7 +406,7 @@ def main(task: str, argv=None) -> int:
   metrics_file = io.MetricsFile(os.path.join(plan.out, "metrics.csv"))
   print(f"{plan.task}: {', '.join(plan.configs)} x {plan.spec.seeds} seeds x {plan.spec.steps} "
         f"steps ({plan.preset}) -> {plan.out}", flush=True)
-  clock = Clock.starting_now(args.time_limit)
+  clock = Clock.starting_now(args.time_limit, os.path.join(plan.out, "timing.json"))
   try:
     for method in plan.configs:
       train_method(plan, method, metrics_file, progress=not args.no_progress,

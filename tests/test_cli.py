@@ -125,11 +125,16 @@ def test_time_limit_stops_checkpointed_and_resume_completes_the_run(reference, t
   assert _rows(out) == _rows(reference)
 
 
-def test_clock_estimates_the_next_chunk_by_the_last():
-  clock = cli.Clock.starting_now(100.0)
+def test_clock_estimates_the_next_chunk_by_the_last(tmp_path):
+  path = str(tmp_path / "timing.json")
+  clock = cli.Clock.starting_now(100.0, path)
   assert clock.allows(None) and clock.allows(99.0) and not clock.allows(101.0)
-  clock.first_chunk_s = 150.0  # a method's first chunk compiles: estimated by the last first one
+  clock.saw_first_chunk(150.0)  # a method's first chunk compiles: estimated by the longest one
+  clock.saw_first_chunk(20.0)
   assert not clock.allows(None)
+  # A resumed process knows it before its first chunk.
+  assert cli.Clock.starting_now(100.0, path).first_chunk_s == 150.0
+  assert not cli.Clock.starting_now(100.0, path).allows(None)
   assert cli.Clock.starting_now(None).allows(1e9)
 
 

@@ -193,8 +193,8 @@ def run_plan(plan: Plan, work: str, budget: float, reserve: float = 20.0) -> dic
     s["exit"] = code
     if code == 0:
       s["status"] = "done"
-    elif stage.kind == "experiment" and code == EXIT_TIME_LIMIT:
-      s["status"] = "running"
+    elif stage.kind == "experiment" and code in (EXIT_TIME_LIMIT, -9):
+      s["status"] = "running"  # -9: killed in a chunk; it resumes from its last checkpoint
     elif stage.kind == "benchmark" and code == -9:
       s["status"] = "partial"  # killed at its time: the rows it wrote are kept
     else:
