@@ -14,7 +14,8 @@ modes live. Seeds are vmapped; one timed call is a jitted chunk of ``--chunk`` s
 
 With E envs per seed the updates are the paper's per vector step (``num_envs`` alone: one
 Low update per vector step), unless ``--grad-steps U`` is given: then U updates per vector
-step of batch 100 E / U (``methods.widen``'s data use per env step). ``compile_s`` is the
+step of batch 100 E / U (``methods.widen``'s data use per env step); ``--paper-updates`` is
+U = E, the paper's updates per env step exactly (E updates of batch 100 per vector step). ``compile_s`` is the
 chunk's lowering and XLA compilation alone; ``memory`` is XLA's accounting of the chunk
 program (arguments + outputs + temporaries - donated), and on a GPU ``peak_bytes_in_use``
 the process's allocator peak so far.
@@ -85,6 +86,8 @@ def main(argv=None):
   p.add_argument("--grad-steps", type=int, default=None,
                  help="TD3 updates per vector step, of batch 100 E / U (methods.widen); "
                       "default: one update of batch 100 per vector step")
+  p.add_argument("--paper-updates", action="store_true",
+                 help="U = E for every E: the paper's TD3 updates per env step exactly")
   p.add_argument("--chunk", type=int, default=200, help="env steps per timed call")
   p.add_argument("--repeats", type=int, default=2)
   p.add_argument("--out", default=common.RESULTS)
@@ -92,9 +95,13 @@ def main(argv=None):
   settings = ("paper: Low TD3 update every vector step (batch 100, 300-300), Middle TD3 + "
               "relabelling every 10 steps; ours: + Middle PPO every 30, Top PPO every 400, "
               "Top mode every 50; warm-up and starting mode 0; evaluation timed apart")
+  if args.grad_steps is not None and args.paper_updates:
+    p.error("--grad-steps and --paper-updates exclude each other")
   if args.grad_steps is not None:
     settings += f"; with E envs per seed: {args.grad_steps} TD3 updates of batch 100 E / " \
                 f"{args.grad_steps} per vector step (methods.widen)"
+  if args.paper_updates:
+    settings += "; with E envs per seed: E TD3 updates of batch 100 per vector step"
   rows = []
   for name in args.envs:
     for method in args.methods:
@@ -102,7 +109,8 @@ def main(argv=None):
         for s in args.seeds:
           # One evaluation is 50 episodes x 1000 steps per seed: minutes of MJX on a CPU.
           time_eval = name.startswith("Point") or jax.default_backend() != "cpu"
-          r = measure(name, method, s, e, args.chunk, args.repeats, time_eval, args.grad_steps)
+          u = e if args.paper_updates else args.grad_steps
+          r = measure(name, method, s, e, args.chunk, args.repeats, time_eval, u)
           rows.append(r)
           mib = r["memory"].get("total", 0) / 2**20
           print(f"{name:9s} {method:5s} seeds {s:3d} x envs {e:3d}: "
