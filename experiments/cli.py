@@ -339,6 +339,8 @@ def train_method(plan: Plan, method: str, metrics_file: io.MetricsFile, progress
       ckpts.close()
       if bar:
         bar.close()
+      if writer is not None:
+        writer.close()
       raise TimeLimit(f"{method}: stopped at step {t0} of {spec.steps} for the time limit "
                       f"(checkpointed); continue with --resume {plan.out}")
     t_chunk = time.monotonic()

@@ -3,6 +3,7 @@
     out/config.json                 everything needed to rerun (configs, versions, device)
     out/metrics.csv                 long form: one row per method, seed and log step
     out/checkpoints/<method>/<step> orbax checkpoints of the vmapped train state
+    out/timing.json                 the longest first (compiling) chunk, for --time-limit
 
 Consistency under a kill at any moment (SIGKILL included): a chunk's metrics rows are written
 and flushed before its checkpoint, orbax writes each checkpoint into a temporary folder that
