@@ -15,10 +15,11 @@ modes live. Seeds are vmapped; one timed call is a jitted chunk of ``--chunk`` s
 With E envs per seed the updates are the paper's per vector step (``num_envs`` alone: one
 Low update per vector step), unless ``--grad-steps U`` is given: then U updates per vector
 step of batch 100 E / U (``methods.widen``'s data use per env step); ``--paper-updates`` is
-U = E, the paper's updates per env step exactly (E updates of batch 100 per vector step). ``compile_s`` is the
-chunk's lowering and XLA compilation alone; ``memory`` is XLA's accounting of the chunk
-program (arguments + outputs + temporaries - donated), and on a GPU ``peak_bytes_in_use``
-the process's allocator peak so far.
+U = E, the paper's updates per env step exactly (E updates of batch 100 per vector step).
+
+``compile_s`` is the chunk's lowering and XLA compilation alone; ``memory`` is XLA's
+accounting of the chunk program (arguments + outputs + temporaries - donated), and on a GPU
+``peak_bytes_in_use`` the process's allocator peak so far.
 
 Writes ``benchmarks/results/train_throughput_<platform>_<date>.json`` after every row (the
 last write sets ``"complete": true``) and prints a table.

@@ -47,7 +47,10 @@ import time
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 STATE_DIR = os.path.join("benchmarks", "device", "state")  # in the repo: committed
-EXIT_TIME_LIMIT = 3  # experiments.cli.EXIT_TIME_LIMIT (not imported: no jax in this process)
+# This process only starts the stages and must not hold the GPU: it imports nothing that
+# imports jax (a jax process that touches the GPU takes 75 % of its memory by default), so the
+# two pieces below repeat experiments.cli.EXIT_TIME_LIMIT and nonmono_jax.io.write_json.
+EXIT_TIME_LIMIT = 3
 # What one command may give back ($OUT): files, size of each, size in all (device README).
 MAX_FILES, MAX_FILE_BYTES, MAX_TOTAL_BYTES = 8, 16 * 2**20, 64 * 2**20
 EXPORT = "results.tar.gz"
@@ -101,6 +104,7 @@ def state_path(plan: Plan, repo: str = ROOT) -> str:
 
 
 def _write_json(path: str, payload) -> None:
+  """Atomically (see the note on imports at the top)."""
   os.makedirs(os.path.dirname(path), exist_ok=True)
   tmp = path + ".tmp"
   with open(tmp, "w") as f:
