@@ -11,9 +11,7 @@ import os
 import pytest
 
 from benchmarks.device import campaign
-from tests_support import TINY_RUN
-
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+from tests_support import CACHE_DIR, ROOT, TINY_RUN
 
 
 def _plan(tmp_path):
@@ -32,8 +30,7 @@ def _plan(tmp_path):
 
 @pytest.fixture(autouse=True)
 def _cache(monkeypatch):
-  monkeypatch.setenv("JAX_COMPILATION_CACHE_DIR", os.environ.get(
-      "JAX_COMPILATION_CACHE_DIR", os.path.join(ROOT, ".jax_cache")))
+  monkeypatch.setenv("JAX_COMPILATION_CACHE_DIR", CACHE_DIR)
 
 
 def test_a_plan_runs_across_commands_and_collects_into_the_repo(tmp_path, monkeypatch):

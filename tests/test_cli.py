@@ -11,9 +11,7 @@ import time
 import pytest
 
 from experiments import cli
-from tests_support import TINY_RUN
-
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+from tests_support import CACHE_DIR, ROOT, TINY_RUN
 TINY = TINY_RUN
 
 
@@ -79,8 +77,7 @@ def test_resume_after_a_stop_gives_the_same_metrics(reference, tmp_path):
 
 def test_sigkill_leaves_a_resumable_run(reference, tmp_path):
   out = str(tmp_path / "run")
-  cache = os.environ.get("JAX_COMPILATION_CACHE_DIR", os.path.join(ROOT, ".jax_cache"))
-  env = {**os.environ, "PYTHONPATH": ROOT, "JAX_COMPILATION_CACHE_DIR": cache}
+  env = {**os.environ, "PYTHONPATH": ROOT, "JAX_COMPILATION_CACHE_DIR": CACHE_DIR}
   proc = subprocess.Popen([sys.executable, "-m", "experiments.pointmaze", *TINY,
                            "--method", "ours", "ref-ppo", "--out", out], cwd=ROOT, env=env,
                           stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)

@@ -6,9 +6,7 @@ import nbformat
 import pytest
 from nbclient import NotebookClient
 
-from tests_support import TINY_RUN
-
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+from tests_support import CACHE_DIR, ROOT, TINY_RUN
 NOTEBOOKS = os.path.join(ROOT, "notebooks")
 
 
@@ -17,8 +15,7 @@ def _execute(name, parameters, monkeypatch):
   cells = [c for c in nb.cells if "parameters" in c.metadata.get("tags", [])]
   assert len(cells) == 1
   cells[0].source = parameters
-  monkeypatch.setenv("JAX_COMPILATION_CACHE_DIR",
-                     os.environ.get("JAX_COMPILATION_CACHE_DIR", os.path.join(ROOT, ".jax_cache")))
+  monkeypatch.setenv("JAX_COMPILATION_CACHE_DIR", CACHE_DIR)
   monkeypatch.setenv("PYTHONPATH", ROOT)
   NotebookClient(nb, timeout=600, kernel_name="python3",
                  resources={"metadata": {"path": NOTEBOOKS}}).execute()

@@ -9,7 +9,7 @@ import subprocess
 import sys
 import textwrap
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+from tests_support import CACHE_DIR, ROOT
 
 SCRIPT = textwrap.dedent("""
     import os
@@ -43,8 +43,7 @@ SCRIPT = textwrap.dedent("""
 
 
 def test_seed_axis_sharded_on_two_devices_matches_one():
-  cache = os.environ.get("JAX_COMPILATION_CACHE_DIR", os.path.join(ROOT, ".jax_cache"))
-  env = {**os.environ, "CACHE": cache, "PYTHONPATH": ROOT}
+  env = {**os.environ, "CACHE": CACHE_DIR, "PYTHONPATH": ROOT}
   env.pop("XLA_FLAGS", None)
   res = subprocess.run([sys.executable, "-c", SCRIPT], cwd=ROOT, env=env, capture_output=True,
                        text=True, timeout=600)

@@ -1,5 +1,11 @@
 """Shared test constants (importable from tests and notebooks' tests)."""
 
+import os
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+# XLA's persistent compilation cache: shared by the test process and the ones it starts.
+CACHE_DIR = os.environ.get("JAX_COMPILATION_CACHE_DIR", os.path.join(ROOT, ".jax_cache"))
+
 # A tiny experiment: 2 seeds x 800 steps of the point robot with 16-unit networks.
 TINY_RUN = ["--preset", "quick", "--seeds", "2", "--steps", "800", "--chunk", "200",
             "--checkpoint-every", "200", "--episode-length", "100", "--warmup_steps", "100",

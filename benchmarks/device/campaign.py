@@ -136,7 +136,8 @@ def load_state(plan: Plan, work: str, repo: str = ROOT) -> dict:
 # --- running stages on the device ---------------------------------------------------------------
 
 def _run(argv: list[str], log_path: str, timeout: float) -> int:
-  """Run ``python -m ...`` in the repo, output to a log (and its tail to our stdout)."""
+  """Run ``python -m ARGV`` in the repo with its output appended to ``log_path``; the exit
+  code, or -9 if it was killed at ``timeout`` seconds."""
   env = {**os.environ, "PYTHONUNBUFFERED": "1",
          "PYTHONPATH": os.pathsep.join(filter(None, [ROOT, os.environ.get("PYTHONPATH")]))}
   with open(log_path, "a") as log:
