@@ -9,8 +9,9 @@
 Inside a chunk the global step ``t`` is the scan's input and is not batched over seeds, so
 every horizon gate in ``agent.step`` stays a real branch (SPEC section 6). ``metrics`` are per
 seed, reduced over the chunk: a level's metrics (``low/...``, ``top/...``) are averaged over the
-steps where that level updated (``<level>/updated`` counts them), ``count/<mode>`` are summed
-(env steps run in each mode), the rest are averaged over all steps.
+steps where that level updated (``<level>/updated`` counts them), ``count/<mode>`` (env steps
+run in each mode) and ``decisions/<mode>`` (Middle decisions) are summed, the rest are
+averaged over all steps.
 
 ``chunk`` donates its input states (the buffers are updated in place): pass it states from
 ``init``, a previous ``chunk`` or a checkpoint, and do not reuse them after the call.
@@ -49,7 +50,8 @@ def reduce_chunk(metrics: dict) -> dict:
   for name, m in metrics.items():
     level = name.split("/")[0]
     flag = metrics.get(f"{level}/updated")
-    if name.startswith("count/") or name.endswith("/updated") or name == "switch/switches":
+    if (name.startswith(("count/", "decisions/")) or name.endswith("/updated")
+        or name == "switch/switches"):
       out[name] = m.sum(axis=0)
     elif flag is not None:
       out[name] = (m * flag).sum(axis=0) / jp.maximum(flag.sum(axis=0), 1.0)
