@@ -21,10 +21,13 @@ Kept from the port: full-batch epochs (no minibatches), normalised Monte Carlo r
 do not bootstrap past the rollout's end, no GAE, no advantage normalisation, no gradient
 clipping, the advantage against the current critic without gradient, torch's unbiased std
 (``ddof=1``) in the normalisation, tanh MLPs, a state-independent Gaussian std decayed by the
-caller (``gaussian_std``) and the Adam parameter groups. Changed: the Gaussian mean is
-``action_scale * tanh(mlp)`` and its std is ``std * action_scale`` per dimension (the port's
-actions live in [-1, 1]; scaling both keeps its std schedule meaningful for goals in action
-units); networks use ``networks.make_mlp``'s initialisation, not torch's.
+caller (``gaussian_std``) and the Adam parameter groups. The Gaussian head is the port's
+(``mean_head="linear"``): a linear (unbounded) mean and the std in action units, so the
+Middle's std of 0.6 is 0.6 goal units, as in the paper's code (the caller clips the goal to
+its range). ``mean_head="tanh"`` keeps this project's earlier head, ``action_scale *
+tanh(mlp)`` with std ``std * action_scale`` per dimension (at a goal range of 10 an x/y std
+of 6: about as entropic as uniform random goals). Networks use ``networks.make_mlp``'s
+initialisation, not torch's.
 """
 
 from __future__ import annotations
@@ -43,6 +46,7 @@ from nonmono_jax import networks
 
 _RETURN_EPS = 1e-7  # the port's normaliser epsilon
 _LOG_2PI_E = math.log(2.0 * math.pi * math.e)
+MEAN_HEADS = ("linear", "tanh")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -62,6 +66,7 @@ class PPOConfig:
   std_decay: float = 0.05
   std_decay_every: int = 250_000
   std_min: float = 0.1
+  mean_head: str = "linear"  # Gaussian: "linear" (the paper's code) or "tanh" (scaled by range)
 
   def __post_init__(self):
     object.__setattr__(self, "hidden", tuple(int(h) for h in self.hidden))
@@ -89,6 +94,9 @@ class PPOConfig:
       raise ValueError(f"std_decay must be >= 0, got {self.std_decay}")
     if self.std_decay_every < 1:
       raise ValueError(f"std_decay_every must be >= 1, got {self.std_decay_every}")
+    if self.mean_head not in MEAN_HEADS:
+      raise ValueError(f"mean_head must be one of {', '.join(MEAN_HEADS)}, "
+                       f"got {self.mean_head!r}")
 
 
 @struct.dataclass
@@ -181,11 +189,13 @@ def make_ppo(obs_size: int, action_size: int, config: PPOConfig = PPOConfig(),
   # it has no distribution and adds nothing to log-probabilities or the entropy.
   active = action_scale > 0
   n_active = int(jp.sum(active)) if not discrete else action_size
-  safe_scale = jp.where(active, action_scale, 1.0)
-  log_scale_sum = jp.sum(jp.where(active, jp.log(safe_scale), 0.0))
+  scaled = config.mean_head == "tanh"
+  # sigma = std * unit per dimension: the action range for the tanh head, 1 for the linear one
+  unit = jp.where(active, action_scale, 1.0) if scaled else jp.ones((action_size,), jp.float32)
+  log_unit_sum = jp.sum(jp.where(active, jp.log(unit), 0.0))
 
   actor = networks.make_mlp(obs_size, config.hidden, action_size, activation=nn.tanh,
-                            final_activation=None if discrete else nn.tanh)
+                            final_activation=nn.tanh if scaled and not discrete else None)
   critic = networks.make_mlp(obs_size, config.hidden, 1, activation=nn.tanh)
   optimizer = optax.multi_transform(
       {"actor": optax.adam(config.lr_actor), "critic": optax.adam(config.lr_critic)},
@@ -197,12 +207,12 @@ def make_ppo(obs_size: int, action_size: int, config: PPOConfig = PPOConfig(),
     return PPOState(params=params, opt_state=optimizer.init(params))
 
   def _head(params, obs):
-    """Logits (discrete) or the scaled mean (Gaussian)."""
+    """Logits (discrete) or the Gaussian mean (linear, or ``action_scale * tanh``)."""
     out = actor.apply(params["actor"], obs)
-    return out if discrete else out * action_scale
+    return out * action_scale if scaled and not discrete else out
 
   def _gaussian_log_prob(mean, action, std):
-    sigma = std * safe_scale
+    sigma = std * unit
     z = (action - mean) / sigma
     per_dim = jp.where(active, -0.5 * z**2 - jp.log(sigma), 0.0)
     return jp.sum(per_dim, axis=-1) - 0.5 * n_active * math.log(2 * jp.pi)
@@ -219,7 +229,7 @@ def make_ppo(obs_size: int, action_size: int, config: PPOConfig = PPOConfig(),
     if discrete:
       logp = jax.nn.log_softmax(head)
       return -jp.sum(jp.exp(logp) * logp, axis=-1)
-    h = 0.5 * n_active * _LOG_2PI_E + n_active * jp.log(std) + log_scale_sum
+    h = 0.5 * n_active * _LOG_2PI_E + n_active * jp.log(std) + log_unit_sum
     return jp.broadcast_to(h, head.shape[:-1])
 
   def act(params, obs, key, std):
@@ -228,12 +238,13 @@ def make_ppo(obs_size: int, action_size: int, config: PPOConfig = PPOConfig(),
       action = jax.random.categorical(key, head, axis=-1)
       logp = jp.take_along_axis(jax.nn.log_softmax(head), action[..., None], axis=-1)[..., 0]
       return action, logp
-    action = head + std * action_scale * jax.random.normal(key, head.shape)
+    noise = std * unit * jax.random.normal(key, head.shape)
+    action = jp.where(active, head + noise, 0.0)
     return action, _gaussian_log_prob(head, action, std)
 
   def mode(params, obs):
     head = _head(params, obs)
-    return jp.argmax(head, axis=-1) if discrete else head
+    return jp.argmax(head, axis=-1) if discrete else jp.where(active, head, 0.0)
 
   def value(params, obs):
     return critic.apply(params["critic"], obs)[..., 0]

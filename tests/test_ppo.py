@@ -117,14 +117,20 @@ def test_discrete_log_prob_and_entropy():
   assert net.mode(params, obs).shape == (5,)
 
 
-def test_gaussian_log_prob_is_a_normal_density():
-  net = ppo.make_ppo(2, 2, ppo.PPOConfig(hidden=SMALL), action_scale=jp.array([3.0, 1.0]))
+@pytest.mark.parametrize("head", ["linear", "tanh"])
+def test_gaussian_log_prob_is_a_normal_density(head):
+  """The paper's head: std in goal units (0.5 here), whatever the range; "tanh": std x range."""
+  scale = np.array([3.0, 1.0])
+  net = ppo.make_ppo(2, 2, ppo.PPOConfig(hidden=SMALL, mean_head=head), action_scale=scale)
   params = net.init(jax.random.PRNGKey(0)).params
   obs = jp.ones((2,))
   mean = np.asarray(net.mode(params, obs))
-  assert np.all(np.abs(mean) <= np.array([3.0, 1.0]))
+  if head == "tanh":
+    assert np.all(np.abs(mean) <= scale)
   action, logp = net.act(params, obs, jax.random.PRNGKey(1), 0.5)
-  sigma = 0.5 * np.array([3.0, 1.0])
+  sigma = 0.5 * (scale if head == "tanh" else np.ones(2))
+  h = np.sum(0.5 * math.log(2 * math.pi * math.e) + np.log(sigma))
+  np.testing.assert_allclose(net.entropy(params, obs, 0.5), h, rtol=1e-5)
   ref = np.sum(-0.5 * ((action - mean) / sigma) ** 2 - np.log(sigma) - 0.5 * math.log(2 * np.pi))
   np.testing.assert_allclose(logp, ref, rtol=1e-5)
 
@@ -239,5 +245,18 @@ def test_zero_scale_dimension_is_fixed_and_finite():
   obs = jp.ones(5)
   a, logp = learner.act(params, obs, jax.random.PRNGKey(1), 0.6)
   assert a[2] == 0.0 and np.isfinite(logp)
-  two_d = 2 * (0.5 * math.log(2 * math.pi * math.e) + math.log(0.6 * 4.0))
+  two_d = 2 * (0.5 * math.log(2 * math.pi * math.e) + math.log(0.6))  # goal units
   np.testing.assert_allclose(learner.entropy(params, obs, 0.6), two_d, rtol=1e-6)
+
+
+@pytest.mark.parametrize("head,expected", [("linear", 7.0), ("tanh", 3.0 * np.tanh(7.0))])
+def test_gaussian_mean_head(head, expected):
+  """The paper's Middle PPO mean is linear (unbounded, the caller clips the goal)."""
+  net = ppo.make_ppo(2, 2, ppo.PPOConfig(hidden=SMALL, mean_head=head),
+                     action_scale=jp.array([3.0, 3.0]))
+  params = net.init(jax.random.PRNGKey(0)).params
+  layers = params["actor"]["params"]
+  last = sorted(layers)[-1]
+  layers[last] = {"kernel": jp.zeros_like(layers[last]["kernel"]),
+                  "bias": jp.full_like(layers[last]["bias"], 7.0)}
+  np.testing.assert_allclose(net.mode(params, jp.ones((2,))), [expected] * 2, rtol=1e-6)
