@@ -5,11 +5,11 @@ A seed runs ``num_envs`` envs (1 in the paper) that share its learners and buffe
     Low:     a = clip(pi_L(s, g) + noise) (uniform in warm-up) -> env.step -> s', R, success
              Low buffer <- (s, g, a, r_L, s', g');  g <- g' = s[:3] + g - s'[:3]
     Top:     R_m += R, Done_m += success, Count_m += 1                           (top.py)
-    switch:  Ref: V(s') -> value promise discrepancy -> homeostasis -> explore?   (switch.py)
     episode end (every episode_length steps, all envs at once): reset
-    every c steps (Middle horizon):
-      Middle TD3 buffer + Middle PPO rollout <- (s_0, g, 0.1 sum R, s_c)           (middle.py)
+    every c steps (Middle horizon, a Middle decision):
+      Middle TD3 buffer + Middle PPO rollout <- (s_0, g, 0.1 sum R, s_c, success)  (middle.py)
       every top.horizon steps (ours): Top transition; g_expl_mode ~ pi_T(s, target)
+      Ref: V'(s_c) -> value promise discrepancy -> homeostasis -> explore?        (switch.py)
       next goal from the sub-policy of g_expl_mode (TD3 / PPO / RANDOM)
     updates (after warm-up): Low TD3 every step, Middle TD3 every c, Middle PPO every 30,
       Top PPO every 400; evaluation of Middle TD3 + Low TD3 every 10K steps -> S_E
@@ -59,6 +59,9 @@ class SeedState:
   horizon: Horizon | None  # (E,) the current Top horizon (ours)
   trigger: TriggerState | None  # (E,) the informed switch (Ref:*)
   mode_steps: jax.Array  # (3,) int32 env steps run in each mode after warm-up
+  mode_decisions: jax.Array  # (3,) int32 Middle decisions in each mode after warm-up
+  mode_steps_after_start: jax.Array  # (3,) the same after the starting mode
+  mode_decisions_after_start: jax.Array  # (3,)
   s_e: jax.Array  # the latest evaluation success rate S_E
   eval_distance: jax.Array  # and its mean final distance to the target
   eval_return: jax.Array  # and its mean episode return
@@ -109,29 +112,50 @@ def make_agent(env, config: AgentConfig = AgentConfig()) -> Agent:
   has_top, informed = config.switch == "top", config.switch == "homeostasis"
   has_ppo = config.uses_middle_ppo
   top_cfg = config.top
-  live_from = config.warmup_steps + top_cfg.starting_steps  # the Top's own choices start here
+  # After warm-up, the starting mode (ours: the Top forced to RANDOM; Ref: explore) runs
+  # until live_from; then the Top's (or the trigger's) own choices start.
+  # HIRO has no starting mode (always TD3).
+  live_from = config.warmup_steps + (top_cfg.starting_steps if has_top or informed else 0)
+  starting_mode = (hierarchy.RANDOM if has_top else
+                   config.explore_mode_index if informed else hierarchy.TD3)
 
   low = make_low(obs_size, act_size, env.action_limit, config.low, config.low_updates)
-  middle = make_middle(obs_size, act_size, target, config)
+  middle = make_middle(obs_size, act_size, target, config, low.td3.act)
   top = make_top(obs_size, target, top_cfg) if has_top else None
-  switch = (make_informed_switch(config.homeostasis, config.explore_mode_index)
+  switch = (make_informed_switch(config.homeostasis, config.explore_mode_index, c)
             if informed else None)
   evaluate = evaluate_lib.make_evaluate(env, c, low.td3.act, middle.td3.act,
-                                        config.eval_episodes)
+                                        config.eval_episodes, config.eval_target_networks)
 
   def value(middle_params, obs):
-    """V(s) = Q1_M(s, target, pi_M(s, target)), the informed trigger's value."""
+    """V(s) = min(Q1', Q2')(s, target, pi'_M(s, target)): the trigger's value (target nets)."""
     tgt = jp.broadcast_to(target, obs.shape[:-1] + target.shape)
-    return middle.td3.q_values(middle_params.critic, obs, tgt,
-                               middle.td3.act(middle_params, obs, tgt))[0]
+    targets = middle_params.replace(actor=middle_params.target_actor)
+    q = middle.td3.q_values(middle_params.target_critic, obs, tgt,
+                            middle.td3.act(targets, obs, tgt))
+    return q.min(axis=0)
 
   def goals(state, obs, mode, key, warm, t):
     ppo_params = state.middle_ppo.params if has_ppo else None
     return jax.vmap(middle.goal, in_axes=(None, None, 0, 0, 0, None, None))(
         state.middle.params, ppo_params, obs, mode, jax.random.split(key, E), warm, t)
 
+  def new_segments(state, obs, key, warm, t):
+    """The goals of new segments from ``obs`` (random where ``warm``)."""
+    goal, ppo_action, log_prob = goals(state, obs, state.mode, key, warm, t)
+    return state.replace(goal=goal, segment=jax.vmap(middle.new_segment)(
+        obs, goal, ppo_action, log_prob))
+
+  def count(state, live, after_start, field, field_after_start):
+    """Add one to each env's current mode in ``field`` (and after the starting mode)."""
+    n = jax.nn.one_hot(state.mode, N_MODES, dtype=jp.int32).sum(0)
+    return state.replace(**{field: getattr(state, field) + n * live,
+                            field_after_start: getattr(state, field_after_start)
+                            + n * after_start}), n * live
+
   def init(key):
-    ke, kl, km, kp, kt, kg, key = jax.random.split(key, 7)
+    ke, kl, km, kp, kt, kh, kg, key = jax.random.split(key, 8)
+    zeros_modes = jp.zeros((N_MODES,), jp.int32)
     env_state = jax.vmap(env.reset)(jax.random.split(ke, E))
     obs = env_state.obs
     state = SeedState(
@@ -143,22 +167,22 @@ def make_agent(env, config: AgentConfig = AgentConfig()) -> Agent:
                         if has_ppo else None),
         top_rollout=jax.vmap(lambda _: top.init_rollout())(jp.arange(E)) if has_top else None,
         goal=jp.zeros((E, hierarchy.GOAL_SIZE)), segment=None,
-        mode=jp.full((E,), hierarchy.TD3, jp.int32), horizon=None, trigger=None,
-        mode_steps=jp.zeros((N_MODES,), jp.int32), s_e=jp.zeros(()),
+        mode=jp.full((E,), starting_mode if live_from > 0 else hierarchy.TD3, jp.int32),
+        horizon=None, trigger=None, mode_steps=zeros_modes, mode_decisions=zeros_modes,
+        mode_steps_after_start=zeros_modes, mode_decisions_after_start=zeros_modes,
+        s_e=jp.zeros(()),
         eval_distance=jp.zeros(()), eval_return=jp.zeros(()), key=key)
     if has_top:
       horizon = jax.vmap(top.start, in_axes=(None, 0, 0, None))(
-          state.top.params, obs, jax.random.split(kt, E), True)
+          state.top.params, obs, jax.random.split(kh, E), live_from > 0)
       state = state.replace(horizon=horizon, mode=horizon.mode)
     if informed:
-      trigger = jax.vmap(switch.init)(value(state.middle.params, obs))
-      state = state.replace(trigger=trigger, mode=jax.vmap(switch.mode)(trigger))
-    goal, log_prob = goals(state, obs, state.mode, kg, True, 0)
-    return state.replace(goal=goal, segment=jax.vmap(middle.new_segment)(obs, goal, log_prob))
+      state = state.replace(trigger=jax.vmap(switch.init)(value(state.middle.params, obs)))
+    return new_segments(state, obs, kg, True, 0)
 
   def step(state: SeedState, t):
     """One env step of every env of the seed, at global step ``t`` (unbatched)."""
-    key, ka, kr, ks, kh, kg, kl, km, kp, kt, kev = jax.random.split(state.key, 11)
+    key, ka, kr, ks, kh, kg, kl, km, kp, kt, kev, kc = jax.random.split(state.key, 12)
     warm = t < config.warmup_steps
     live = jp.logical_not(warm)
     i = t % c
@@ -174,35 +198,22 @@ def make_agent(env, config: AgentConfig = AgentConfig()) -> Agent:
     s_next, reward = env_next.obs, env_next.reward
     success = env_next.metrics["success"]
     low_tr = jax.vmap(low.transition)(s, state.goal, a, s_next)
-    counted = jax.nn.one_hot(state.mode, N_MODES, dtype=jp.int32).sum(0) * live
+    state, counted = count(state, live, t >= live_from, "mode_steps", "mode_steps_after_start")
     state = state.replace(
         env=env_next, low_buffer=buffers.add(state.low_buffer, low_tr), goal=low_tr.next_context,
-        segment=jax.vmap(middle.record, in_axes=(0, None, 0, 0, 0))(
-            state.segment, i, a, s_next, reward),
-        mode_steps=state.mode_steps + counted, key=key)
+        segment=jax.vmap(middle.record, in_axes=(0, None, 0, 0, 0, 0))(
+            state.segment, i, a, s_next, reward, success),
+        key=key)
     metrics = {"reward": reward.mean(), "success": success.mean(),
                "distance": env_next.metrics["distance"].mean(), "low/reward": low_tr.reward.mean(),
                **{f"count/{m}": counted[j] for j, m in enumerate(hierarchy.MODES)}}
-
     if has_top:
       state = state.replace(horizon=jax.vmap(top.accumulate)(state.horizon, reward, success))
-    if informed:
-      window_full = live & ((t % L) + 1 >= config.homeostasis.k)
-      trigger, switched = jax.vmap(switch.step, in_axes=(0, 0, 0, 0, None))(
-          state.trigger, value(state.middle.params, s_next), reward, jax.random.split(ks, E),
-          window_full)
-      state = state.replace(trigger=trigger, mode=jax.vmap(switch.mode)(trigger))
-      metrics["switch/switches"] = switched.sum().astype(jp.float32)
 
     # An episode ends only at a segment's end (episode_length is a multiple of c), after
-    # s_c is stored, so the reset comes first and the next goal is chosen from the new state.
+    # s_c is recorded, so the reset comes first and the next goal is chosen from the new state.
     def reset(state):
-      env_state = jax.vmap(env.reset)(jax.random.split(kr, E))
-      state = state.replace(env=env_state)
-      if informed:
-        trigger = jax.vmap(switch.reset)(state.trigger, value(state.middle.params, env_state.obs))
-        state = state.replace(trigger=trigger, mode=jax.vmap(switch.mode)(trigger))
-      return state
+      return state.replace(env=jax.vmap(env.reset)(jax.random.split(kr, E)))
 
     state = jax.lax.cond(episode_end, reset, lambda s: s, state)
 
@@ -222,38 +233,68 @@ def make_agent(env, config: AgentConfig = AgentConfig()) -> Agent:
       m.update({f"p_{name}": probs[j] for j, name in enumerate(hierarchy.MODES)})
       return state.replace(top_rollout=rollout, horizon=horizon, mode=horizon.mode), m
 
+    def informed_switch(state, items):
+      """Ref: the trigger decides the next segment's mode (explore in the starting mode)."""
+      s_c = items["transition"].next_obs
+      v = value(state.middle.params, s_c)
+
+      def starting(trigger):
+        return jax.vmap(switch.restart)(trigger, v), jp.zeros((E,), bool)
+
+      def deciding(trigger):
+        return jax.vmap(switch.decide)(trigger, v, items["transition"].reward,
+                                       jax.random.split(ks, E))
+
+      # The window of the first exploit period starts at s_{live_from}.
+      trigger, switched = jax.lax.cond(t + 1 <= live_from, starting, deciding, state.trigger)
+      mode = jp.where(t + 1 < live_from, starting_mode, jax.vmap(switch.mode)(trigger))
+      return state.replace(trigger=trigger, mode=mode.astype(jp.int32)), switched
+
     def end_segment(state):
-      """Middle transitions into the TD3 buffer and PPO rollout; the next goals."""
-      items, steps = jax.vmap(middle.close, in_axes=(0, None))(state.segment, episode_end)
+      """Middle transitions into the TD3 buffer and PPO rollout; the next modes and goals."""
+      items, steps = jax.vmap(middle.close, in_axes=(0, None, None, 0))(
+          state.segment, episode_end, state.low.params, jax.random.split(kc, E))
       state = state.replace(middle_buffer=buffers.add(state.middle_buffer, items))
       if has_ppo:
         slot = (t // c) % config.middle_rollout_length
         state = state.replace(middle_rollout=_write_slot(state.middle_rollout, slot, steps))
-      m = {}
+      m = {"switches": jp.zeros(())}
       if has_top:
-        state, m = _gated(horizon_end, end_horizon, state)
-      obs = state.env.obs
-      goal, log_prob = goals(state, obs, state.mode, kg, t + 1 < config.warmup_steps, t)
-      return state.replace(goal=goal,
-                           segment=jax.vmap(middle.new_segment)(obs, goal, log_prob)), m
+        state, hm = _gated(horizon_end, end_horizon, state)
+        m.update(hm)
+      if informed:
+        state, switched = informed_switch(state, items)
+        m["switches"] = switched.sum().astype(jp.float32)
+      state, decided = count(state, t + 1 >= config.warmup_steps, t + 1 >= live_from,
+                             "mode_decisions", "mode_decisions_after_start")
+      m.update({f"decisions/{name}": decided[j] for j, name in enumerate(hierarchy.MODES)})
+      return new_segments(state, state.env.obs, kg, t + 1 < config.warmup_steps, t), m
 
-    state, horizon_m = _gated(segment_end, end_segment, state)
+    state, segment_m = _gated(segment_end, end_segment, state)
+    metrics.update({k: v for k, v in segment_m.items() if k.startswith("decisions/")})
+    if informed:
+      metrics["switch/switches"] = segment_m["switches"]
     if has_top:
-      metrics.update(_prefixed("horizon", horizon_m, segment_end & horizon_end))
+      metrics.update(_prefixed("horizon", {k: v for k, v in segment_m.items()
+                                           if not k.startswith("decisions/")
+                                           and k != "switches"}, segment_end & horizon_end))
+    state, update_m = _updates(state, t, live, segment_end, kl, km, kp, kev)
+    metrics.update(update_m)
+    return state, metrics
 
-    # Learning, after warm-up, each on its own clock.
+  def _updates(state, t, live, segment_end, kl, km, kp, kev):
+    """Learning after warm-up, each level on its own clock, and the evaluation (S_E)."""
+
     def low_update(state):
       new, m = low.update(state.low, state.low_buffer, kl, t)
       return state.replace(low=new), m
 
     def middle_update(state):
-      low_act = lambda obs, g: low.td3.act(state.low.params, obs, g)
-      new, m = middle.td3_update(state.middle, state.middle_buffer, low_act, km, t)
+      new, m = middle.td3_update(state.middle, state.middle_buffer, state.low.params, km, t)
       return state.replace(middle=new), m
 
     def middle_ppo_update(state):
-      rollout = state.middle_rollout
-      new, m = middle.ppo_update(state.middle_ppo, rollout, t)
+      new, m = middle.ppo_update(state.middle_ppo, state.middle_rollout, t)
       return state.replace(middle_ppo=new), {**m, "std": middle.ppo_std(t)}
 
     def top_update(state):
@@ -273,6 +314,7 @@ def make_agent(env, config: AgentConfig = AgentConfig()) -> Agent:
       every = top_cfg.train_every
       gates.append(("top", live & (t % every == every - 1), top_update))
     gates.append(("eval", live & ((t + 1) % config.eval_every == 0), evaluation))
+    metrics = {}
     for name, pred, fn in gates:
       state, m = _gated(pred, fn, state)
       metrics.update(_prefixed(name, m, pred))

@@ -19,6 +19,8 @@ from nonmono_jax import hierarchy, homeostasis, ppo, td3
 SWITCHES = ("none", "top", "homeostasis")  # HIRO / ours / Ref:Uniform and Ref:PPO
 EXPLORE_MODES = ("ppo", "random")  # the explore mode of the homeostasis switch
 RANDOM_GOALS = ("uniform", "gaussian")  # ours uniform; the paper's code clip(randn * range)
+RELABELS = ("store", "sample")  # the paper's code: once at store, Low target actor; HIRO: per batch
+PPO_SAMPLES = ("own", "executed")  # what the Middle PPO stores for segments other modes ran
 
 
 def _check_triple(name, values, lo=None, hi=None):
@@ -76,6 +78,9 @@ class AgentConfig:
   switch: str = "top"  # "none" (HIRO), "top" (ours), "homeostasis" (Ref:*)
   explore_mode: str = "ppo"  # homeostasis only: the explore mode, "ppo" or "random"
   random_goal: str = "uniform"
+  middle_relabel: str = "store"  # HIRO's goal relabelling: "store" (paper's code) or "sample"
+  middle_ppo_sample: str = "own"  # Middle PPO rollout: its "own" sample or the "executed" goal
+  eval_target_networks: bool = True  # S_E of the target actors, as the paper's code
   c: int = 10  # Middle horizon
   goal_range: tuple[float, float, float] = (10.0, 10.0, 0.5)
   warmup_steps: int = 100_000  # random low actions and goals, no updates
@@ -95,7 +100,8 @@ class AgentConfig:
   def __post_init__(self):
     object.__setattr__(self, "goal_range", tuple(float(g) for g in self.goal_range))
     for name, allowed in (("switch", SWITCHES), ("explore_mode", EXPLORE_MODES),
-                          ("random_goal", RANDOM_GOALS)):
+                          ("random_goal", RANDOM_GOALS), ("middle_relabel", RELABELS),
+                          ("middle_ppo_sample", PPO_SAMPLES)):
       if getattr(self, name) not in allowed:
         raise ValueError(f"{name} must be one of {', '.join(allowed)}; "
                          f"got {getattr(self, name)!r}")
@@ -116,6 +122,9 @@ class AgentConfig:
     _check_multiple("middle_ppo_every", self.middle_ppo_every, "c", self.c)
     if self.top.horizon % self.c:
       raise ValueError(f"top.horizon ({self.top.horizon}) must be a multiple of c ({self.c})")
+    if self.homeostasis.explore_steps % self.c:
+      raise ValueError(f"homeostasis.explore_steps ({self.homeostasis.explore_steps}) must be "
+                       f"a multiple of c ({self.c}): the switch acts at Middle decisions")
     if self.middle_ppo.discrete:
       raise ValueError("middle_ppo must be Gaussian (discrete=False)")
 

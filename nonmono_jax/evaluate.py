@@ -3,7 +3,8 @@
 Each episode starts from a reset, the Middle TD3 picks a goal every c steps and the Low TD3
 follows it with the goal transition in between (as in training; the paper's code re-queries
 the Middle every step, SPEC section 5). An episode succeeds if the robot comes within the
-task's success radius at any step. Episodes run vmapped inside one ``lax.scan``;
+task's success radius at any step. As in the paper's code, the policies are the *target*
+actors by default (``target_networks``; S_E feeds the Top's loss). Episodes run vmapped inside one ``lax.scan``;
 ``make_episode`` is the episode itself, with a record of every step (also drawn by
 ``experiments/render.py``).
 """
@@ -48,12 +49,24 @@ def make_episode(env, c: int, low_act: Callable, middle_act: Callable) -> Callab
   return episode
 
 
+def acting_params(params, target_networks: bool):
+  """The TD3 params whose ``actor`` is evaluated: the target actor where ``target_networks``."""
+  return params.replace(actor=params.target_actor) if target_networks else params
+
+
 def make_evaluate(env, c: int, low_act: Callable, middle_act: Callable,
-                  episodes: int) -> Callable:
-  """``evaluate(low_params, middle_params, key) -> (S_E, mean final distance, mean return)``."""
+                  episodes: int, target_networks: bool = True) -> Callable:
+  """``evaluate(low_params, middle_params, key) -> (S_E, mean final distance, mean return)``.
+
+  ``low_params`` / ``middle_params`` are the levels' ``TD3Params``; their target actors act
+  where ``target_networks`` (the paper's code), else the online actors.
+  """
   episode = make_episode(env, c, low_act, middle_act)
 
   def evaluate(low_params, middle_params, key):
+    low_params = acting_params(low_params, target_networks)
+    middle_params = acting_params(middle_params, target_networks)
+
     def one(key):
       _, r = episode(low_params, middle_params, key)
       return r["success"].max(), r["distance"][-1], r["reward"].sum()

@@ -1,9 +1,10 @@
 """Pislar et al. (2022)'s informed switching trigger: value promise discrepancy + homeostasis.
 
 The Ref:Uniform and Ref:PPO baselines of Kim et al. (2023) are "X, intra(100), informed":
-X = each episode starts in explore mode, intra(100) = a switch happens inside an episode and an
-explore period lasts ``explore_steps`` (100) steps, informed = the exploit -> explore switch is
-triggered by a signal. The signal is the value promise discrepancy
+X = start in explore mode (in the paper's code: one starting phase of 250K steps after
+warm-up), intra(100) = a switch happens inside an episode and an explore period lasts
+``explore_steps`` (100) steps, informed = the exploit -> explore switch is triggered by a
+signal (``switch.py`` applies it at Middle decisions, as the paper's code does). The signal is the value promise discrepancy
 
   D(t-k, t) = | V(s_{t-k}) - sum_{i=0}^{k-1} gamma^i r_{t-k+i} - gamma^k V(s_t) |,
 
@@ -36,12 +37,14 @@ HORIZON = 100.0  # tau's cap is HORIZON / rho: averages over ~100 expected switc
 
 @dataclasses.dataclass(frozen=True)
 class HomeostasisConfig:
-  """The informed trigger's options: target rate, explore period, discount and lookback."""
+  """The informed trigger's options (``switch.py``): the paper's Ref code decides at Middle
+  decisions, so ``k`` and ``gamma`` are per Middle segment of c env steps."""
 
-  rho: float = 0.01  # target exploit -> explore switch rate per step
-  explore_steps: int = 100  # length of an explore period: intra(100)
-  gamma: float = 0.99  # discount of the value promise
-  k: int = 10  # lookback of the value promise discrepancy, in steps
+  rho: float = 0.01  # target exploit -> explore switch rate per trigger check
+  explore_steps: int = 100  # length of an explore period in env steps: intra(100)
+  gamma: float = 0.99  # discount of the value promise, per Middle segment
+  k: int = 30  # lookback of the value promise discrepancy, in Middle segments
+  reset_stats: bool = True  # fresh homeostasis statistics after each explore period
 
   def __post_init__(self):
     if not 0 < self.rho <= 1:

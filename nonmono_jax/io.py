@@ -33,6 +33,12 @@ COLUMNS = (
      "train_reward", "train_return", "train_success", "train_distance")
     + tuple(f"steps_{m}" for m in hierarchy.MODES)
     + tuple(f"cum_steps_{m}" for m in hierarchy.MODES)
+    # Middle decisions (one per c env steps): the paper's unit for its mode counts
+    + tuple(f"decisions_{m}" for m in hierarchy.MODES)
+    + tuple(f"cum_decisions_{m}" for m in hierarchy.MODES)
+    # the same after the starting mode (both units)
+    + tuple(f"cum_steps_after_start_{m}" for m in hierarchy.MODES)
+    + tuple(f"cum_decisions_after_start_{m}" for m in hierarchy.MODES)
     + tuple(f"p_{m}" for m in hierarchy.MODES)
     + tuple(name.replace("/", "_") for name in LOSSES))
 
@@ -73,6 +79,9 @@ def chunk_rows(task: str, method: str, env_step: int, states, metrics: dict,
   """
   m = jax.tree.map(np.asarray, metrics)
   cum = np.asarray(states.mode_steps)
+  cumulative = {name: np.asarray(getattr(states, field)) for name, field in (
+      ("cum_decisions", "mode_decisions"), ("cum_steps_after_start", "mode_steps_after_start"),
+      ("cum_decisions_after_start", "mode_decisions_after_start"))}
   s_e, dist, ret = (np.asarray(x) for x in (states.s_e, states.eval_distance,
                                              states.eval_return))
   rows = []
@@ -86,6 +95,9 @@ def chunk_rows(task: str, method: str, env_step: int, states, metrics: dict,
     for j, mode in enumerate(hierarchy.MODES):
       row[f"steps_{mode}"] = m[f"count/{mode}"][seed]
       row[f"cum_steps_{mode}"] = cum[seed, j]
+      row[f"decisions_{mode}"] = m[f"decisions/{mode}"][seed]
+      for name, values in cumulative.items():
+        row[f"{name}_{mode}"] = values[seed, j]
       p = m.get(f"horizon/p_{mode}")
       row[f"p_{mode}"] = p[seed] if p is not None and m["horizon/updated"][seed] > 0 else ""
     for name in LOSSES:

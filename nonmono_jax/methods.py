@@ -29,6 +29,7 @@ import dataclasses
 from nonmono_jax import homeostasis, ppo, td3
 from nonmono_jax.config import AgentConfig, TopConfig
 
+REF_PPO_EVERY = 40  # env steps between Ref:PPO's PPO updates in the paper's code (ours: 30)
 METHODS = ("ours", "hiro", "ref-uniform", "ref-ppo", "ours-no-reward-mod", "ours-no-loss-mod",
            "ours-no-mods")
 
@@ -80,7 +81,7 @@ def _method_fields(method: str, task: TaskPreset) -> dict:
   if method in ("ref-uniform", "ref-ppo"):
     return {"switch": "homeostasis", "middle_goal_noise": 0.0,
             "explore_mode": "random" if method == "ref-uniform" else "ppo",
-            "rho": task.rho[method]}
+            "rho": task.rho[method], **({"ref_ppo": True} if method == "ref-ppo" else {})}
   mods = {"ours": (True, True), "ours-no-reward-mod": (False, True),
           "ours-no-loss-mod": (True, False), "ours-no-mods": (False, False)}[method]
   return {**ours, "reward_mod": mods[0], "loss_mod": mods[1]}
@@ -103,6 +104,10 @@ def make_config(method: str, task: str, **overrides) -> AgentConfig:
   rho = m.pop("rho", None)
   if rho is not None:
     fields["homeostasis"] = homeostasis.HomeostasisConfig(rho=rho)
+  if m.pop("ref_ppo", False):  # the paper's Ref:PPO: std 0.6 (decay commented out), every 40
+    fields["middle_ppo"] = dataclasses.replace(fields.get("middle_ppo", ppo.PPOConfig()),
+                                               std_decay=0.0)
+    fields["middle_ppo_every"] = REF_PPO_EVERY
   fields.update(m)
   fields["top"] = TopConfig(**top_fields)
   unknown = set(overrides) - {f.name for f in dataclasses.fields(AgentConfig)}
@@ -114,6 +119,19 @@ def make_config(method: str, task: str, **overrides) -> AgentConfig:
 
 
 PRESETS = ("paper", "quick")
+
+
+def size_buffers(config: AgentConfig, steps: int) -> AgentConfig:
+  """Replay buffers that hold a whole run of ``steps`` vector steps: nothing is evicted.
+
+  The paper's buffers are append-only, sized for the run (6M Low transitions, 600K Middle):
+  the Low stores one transition per env step, the Middle one per c env steps.
+  """
+  env_steps = steps * config.num_envs
+  return dataclasses.replace(
+      config, low=dataclasses.replace(config.low, buffer_size=max(env_steps, 1)),
+      middle=dataclasses.replace(config.middle,
+                                 buffer_size=max(-(-steps // config.c) * config.num_envs, 1)))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -145,15 +163,18 @@ def make_preset(preset: str, method: str, task: str) -> tuple[AgentConfig, RunSp
   if preset == "paper":
     chunk = config.eval_every
     every = chunk if point else 100_000
-    return config, RunSpec(steps=t.total_steps, seeds=5, episode_length=t.episode_length,
-                           chunk=chunk, checkpoint_every=every)
+    return size_buffers(config, t.total_steps), RunSpec(
+        steps=t.total_steps, seeds=5, episode_length=t.episode_length, chunk=chunk,
+        checkpoint_every=every)
   if point:
-    return config, RunSpec(episode_length=t.episode_length, **_QUICK_POINT)
+    spec = RunSpec(episode_length=t.episode_length, **_QUICK_POINT)
+    return size_buffers(config, spec.steps), spec
   top = dataclasses.replace(config.top, **_QUICK_ANT_AGENT["top"])
   config = dataclasses.replace(config, top=top, **{k: v for k, v in _QUICK_ANT_AGENT.items()
                                                    if k != "top"})
-  return config, RunSpec(steps=6_000, seeds=1, episode_length=t.episode_length, chunk=1_000,
-                         checkpoint_every=2_000)
+  return size_buffers(config, 6_000), RunSpec(steps=6_000, seeds=1,
+                                              episode_length=t.episode_length, chunk=1_000,
+                                              checkpoint_every=2_000)
 
 
 def widen(config: AgentConfig, spec: RunSpec, envs_per_seed: int,
@@ -203,4 +224,5 @@ def widen(config: AgentConfig, spec: RunSpec, envs_per_seed: int,
   chunk = vec(spec.chunk)
   steps = -(-vec(spec.steps) // chunk) * chunk
   every = max(chunk, vec(spec.checkpoint_every) // chunk * chunk)
-  return config, dataclasses.replace(spec, steps=steps, chunk=chunk, checkpoint_every=every)
+  return size_buffers(config, steps), dataclasses.replace(spec, steps=steps, chunk=chunk,
+                                                          checkpoint_every=every)

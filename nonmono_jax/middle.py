@@ -3,12 +3,21 @@
 g_expl_mode picks which one emits the next goal (a relative xyz offset within +-goal_range):
 
     TD3     g = clip(pi_M(s, target) + N(0, sigma_M))     sigma_M: HIRO 1, ours 0
-    PPO     g = clip(N(mu_M(s, target), std_t * range))   std_t decays 0.6 -> 0.1
+    PPO     g = clip(N(mu_M(s, target), std_t))          std_t decays 0.6 -> 0.1 (goal units)
     RANDOM  g ~ U(-range, range)                          (or the paper code's clip(randn*range))
 
-Every Middle transition (s_0, target, g, R_M = 0.1 sum R, s_c), whichever mode chose g, feeds
-both learners: the Middle TD3 buffer (with the segment's states and low actions for HIRO's
-off-policy relabelling) and the Middle PPO rollout (with log pi_PPO(g | s_0) at collection).
+Every Middle transition (s_0, target, g, R_M = 0.1 sum R, s_c, done = success at s_c),
+whichever mode chose g, feeds both learners:
+
+- the Middle TD3 buffer, with g relabelled by HIRO's off-policy correction. The paper's code
+  relabels once, when the segment is stored, under the Low's target actor
+  (``middle_relabel="store"``); the original HIRO relabels every sampled batch under the
+  current Low actor (``"sample"``: the buffer then keeps the segment's states and actions).
+- the Middle PPO rollout. In the paper's code PPO samples its own goal at every Middle
+  decision and stores that sample, with its log-probability, next to the executed segment's
+  reward, whichever mode chose the executed goal (``middle_ppo_sample="own"``);
+  ``"executed"`` stores the executed goal g with log pi_PPO(g | s_0) instead. Its terminal is
+  success at s_c, or the episode's end (so Monte Carlo returns never cross episodes).
 """
 
 from __future__ import annotations
@@ -31,8 +40,10 @@ class Segment:
   obs: jax.Array  # (c + 1, obs): s_0 .. s_c
   actions: jax.Array  # (c, action)
   rewards: jax.Array  # (c,) task rewards
+  success: jax.Array  # () 1.0 where s_c is within the success radius (done of the Middle)
   goal: jax.Array  # (3,) the goal emitted at s_0
-  log_prob: jax.Array  # () log pi_PPO(goal | s_0, target), for the Middle PPO
+  ppo_action: jax.Array  # (3,) the Middle PPO's action stored for this segment
+  log_prob: jax.Array  # () log pi_PPO(ppo_action | s_0, target), for the Middle PPO
 
 
 @dataclasses.dataclass(frozen=True)
@@ -50,7 +61,10 @@ class Middle:
   ppo_std: Callable[[jax.Array], jax.Array]
 
 
-def make_middle(obs_size: int, action_size: int, target, config: AgentConfig) -> Middle:
+def make_middle(obs_size: int, action_size: int, target, config: AgentConfig,
+                low_act: Callable) -> Middle:
+  """The Middle's functions; ``low_act(low_params, obs, goal)`` is the Low's noiseless actor
+  (HIRO's relabelling explains the stored low actions with it)."""
   k, c = hierarchy.GOAL_SIZE, config.c
   goal_range = jp.asarray(config.goal_range, jp.float32)
   target = jp.asarray(target, jp.float32)
@@ -58,6 +72,8 @@ def make_middle(obs_size: int, action_size: int, target, config: AgentConfig) ->
   explorer = (ppo.make_ppo(obs_size + k, k, config.middle_ppo, goal_range)
               if config.uses_middle_ppo else None)
   n_rollout = config.middle_rollout_length
+  at_store = config.middle_relabel == "store"
+  own_sample = config.middle_ppo_sample == "own"
 
   def ppo_std(t):
     return ppo.gaussian_std(t, config.middle_ppo)
@@ -68,61 +84,94 @@ def make_middle(obs_size: int, action_size: int, target, config: AgentConfig) ->
     return jp.clip(jax.random.normal(key, (k,)) * goal_range, -goal_range, goal_range)
 
   def goal(td3_params, ppo_params, obs, mode, key, warm, t):
-    """(goal, log pi_PPO(goal | s, target)) from the sub-policy ``mode`` (random in warm-up)."""
+    """(goal, PPO action to store, its log pi_PPO) from the sub-policy ``mode``.
+
+    Random goals in warm-up. The stored PPO action is PPO's own sample ("own", the paper's
+    code) or the executed goal ("executed").
+    """
     k1, k2, k3 = jax.random.split(key, 3)
     g_random = random_goal(k1)
     g_td3 = learner.explore(td3_params, obs, target, k2, config.middle_goal_noise)
     if explorer is None:
       g = jp.where(warm | (mode == hierarchy.RANDOM), g_random, g_td3)
-      return g, jp.zeros(())
+      return g, g, jp.zeros(())
     std = ppo_std(t)
     ppo_obs = jp.concatenate([obs, target])
-    g_ppo = jp.clip(explorer.act(ppo_params, ppo_obs, k3, std)[0], -goal_range, goal_range)
+    sample, sample_logp = explorer.act(ppo_params, ppo_obs, k3, std)
+    g_ppo = jp.clip(sample, -goal_range, goal_range)
     g = jp.select([warm | (mode == hierarchy.RANDOM), mode == hierarchy.PPO],
                   [g_random, g_ppo], g_td3)
-    return g, explorer.log_prob(ppo_params, ppo_obs, g, std)
+    if own_sample:
+      return g, sample, sample_logp
+    return g, g, explorer.log_prob(ppo_params, ppo_obs, g, std)
 
-  def new_segment(obs, g, log_prob):
+  def new_segment(obs, g, ppo_action, log_prob):
     return Segment(obs=jp.zeros((c + 1, obs_size)).at[0].set(obs),
-                   actions=jp.zeros((c, action_size)), rewards=jp.zeros((c,)), goal=g,
-                   log_prob=log_prob)
+                   actions=jp.zeros((c, action_size)), rewards=jp.zeros((c,)),
+                   success=jp.zeros(()), goal=g, ppo_action=ppo_action, log_prob=log_prob)
 
-  def record(seg: Segment, i, a, s_next, reward):
-    """Step ``i`` of the segment: action a_i, then s_{i+1} and the task reward."""
+  def record(seg: Segment, i, a, s_next, reward, success):
+    """Step ``i`` of the segment: action a_i, then s_{i+1}, the task reward and success."""
     return seg.replace(obs=seg.obs.at[i + 1].set(s_next), actions=seg.actions.at[i].set(a),
-                       rewards=seg.rewards.at[i].set(reward))
+                       rewards=seg.rewards.at[i].set(reward),
+                       success=jp.asarray(success, jp.float32))
 
-  def close(seg: Segment, episode_end):
+  def relabelled(seg: Segment, low_params, key):
+    """HIRO's correction of the segment's goal under the Low's target actor (at store)."""
+    policy = lambda obs, g: low_act(low_params.replace(actor=low_params.target_actor), obs, g)
+    return relabel.relabel(key, policy, seg.obs, seg.actions, seg.goal, goal_range)[0]
+
+  def close(seg: Segment, episode_end, low_params, key):
     """The segment's Middle TD3 buffer item and Middle PPO rollout step."""
     reward = hierarchy.middle_reward(seg.rewards)
-    tr = td3.Transition(obs=seg.obs[0], context=target, action=seg.goal, reward=reward,
-                        next_obs=seg.obs[c], next_context=target, done=jp.zeros(()))
-    step = ppo.Rollout(obs=jp.concatenate([seg.obs[0], target]), action=seg.goal,
+    g = relabelled(seg, low_params, key) if at_store else seg.goal
+    tr = td3.Transition(obs=seg.obs[0], context=target, action=g, reward=reward,
+                        next_obs=seg.obs[c], next_context=target, done=seg.success)
+    item = {"transition": tr} if at_store else {"transition": tr, "states": seg.obs,
+                                                "actions": seg.actions}
+    step = ppo.Rollout(obs=jp.concatenate([seg.obs[0], target]), action=seg.ppo_action,
                        log_prob=seg.log_prob, reward=reward,
-                       done=jp.asarray(episode_end, jp.float32))
-    return {"transition": tr, "states": seg.obs, "actions": seg.actions}, step
+                       done=jp.maximum(seg.success, jp.asarray(episode_end, jp.float32)))
+    return item, step
 
   def init_buffer():
-    item, _ = close(new_segment(jp.zeros(obs_size), jp.zeros(k), jp.zeros(())), False)
+    item, _ = _example_close()
     return buffers.init(item, config.middle.buffer_size)
 
+  def _example_close():
+    """Zero-filled (buffer item, rollout step) of ``close``'s shapes."""
+    reward = jp.zeros(())
+    tr = td3.Transition(obs=jp.zeros(obs_size), context=target, action=jp.zeros(k),
+                        reward=reward, next_obs=jp.zeros(obs_size), next_context=target,
+                        done=reward)
+    item = {"transition": tr} if at_store else {"transition": tr,
+                                                "states": jp.zeros((c + 1, obs_size)),
+                                                "actions": jp.zeros((c, action_size))}
+    step = ppo.Rollout(obs=jp.zeros(obs_size + k), action=jp.zeros(k), log_prob=reward,
+                       reward=reward, done=reward)
+    return item, step
+
   def init_rollout():
-    _, step = close(new_segment(jp.zeros(obs_size), jp.zeros(k), jp.zeros(())), False)
+    _, step = _example_close()
     return jax.tree.map(lambda x: jp.zeros((n_rollout,) + x.shape, x.dtype), step)
 
-  def td3_update(state: td3.TD3State, buffer, low_act, key, t):
-    """``middle_updates`` TD3 updates on relabelled batches; ``low_act(obs, goal)`` is pi_L."""
+  def td3_update(state: td3.TD3State, buffer, low_params, key, t):
+    """``middle_updates`` TD3 updates; with ``"sample"`` relabelling each batch is relabelled
+    under the current Low actor (``low_params``) first."""
     cfg = config.middle
 
     def one(state, i):
       k1, k2, k3 = jax.random.split(jax.random.fold_in(key, i), 3)
       sample = buffers.sample(buffer, k1, cfg.batch_size)
-      goals, _ = jax.vmap(lambda kk, s, a, g: relabel.relabel(kk, low_act, s, a, g, goal_range))(
-          jax.random.split(k2, cfg.batch_size), sample["states"], sample["actions"],
-          sample["transition"].action)
+      batch = sample["transition"]
+      if not at_store:
+        policy = lambda obs, g: low_act(low_params, obs, g)
+        goals, _ = jax.vmap(lambda kk, s, a, g: relabel.relabel(kk, policy, s, a, g, goal_range))(
+            jax.random.split(k2, cfg.batch_size), sample["states"], sample["actions"],
+            batch.action)
+        batch = batch.replace(action=goals)
       n = (t // c) * config.middle_updates + i
-      return learner.update(state, sample["transition"].replace(action=goals), k3,
-                            n % cfg.policy_delay == 0)
+      return learner.update(state, batch, k3, n % cfg.policy_delay == 0)
 
     state, metrics = jax.lax.scan(one, state, jp.arange(config.middle_updates))
     return state, jax.tree.map(lambda m: m[-1], metrics)

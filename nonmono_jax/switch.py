@@ -1,16 +1,27 @@
-"""The informed mode switch of Ref:Uniform and Ref:PPO (Pislar et al.'s XU/XI-intra(100, informed)).
+"""The informed mode switch of Ref:Uniform and Ref:PPO, as the paper's code runs it.
 
-Two modes at the Middle: exploit (TD3 goals) and explore (uniform random or Middle PPO goals).
-Per env and env step, with V(s) = Q1_M(s, target, pi_M(s, target)) from the Middle TD3:
+Pislar et al.'s XU/XI-intra(100, informed, p*, X) at the Middle: two modes, exploit (TD3
+goals) and explore (uniform random or Middle PPO goals). The paper's Ref code decides at
+Middle decisions (every c env steps), per env:
 
-    window  <- the last k + 1 values V(s_{t-k}) .. V(s_t) and the k rewards between them
-    x_t     =  D(t-k, t) = |V(s_{t-k}) - sum_i gamma^i r_{t-k+i} - gamma^k V(s_t)|
-    homeostasis(x_t) -> switch ~ Bernoulli(min(1, rho xplus / xplusbar))   (once k steps in)
-    exploit --switch--> explore for exactly ``explore_steps`` (100) env steps, then exploit
-    each episode starts in explore mode (X), for ``explore_steps`` steps
+    starting phase (after warm-up, top.starting_steps env steps): explore      (its "X")
+    exploit period: the window holds V(s) at the last k + 1 Middle decisions and the k
+      Middle rewards R_M between them, V(s) = min(Q1', Q2')(s, target, pi'_M(s, target))
+      (the twin *target* critics at the target actor);
+      once it holds k segments, at every Middle decision:
+        x = D = |V(s_{j-k}) - sum_i gamma^i R_M,{j-k+i} - gamma^k V(s_j)|  (j counts decisions)
+        homeostasis(x) -> switch ~ Bernoulli(min(1, rho xplus / xplusbar))
+        switch: explore for explore_steps / c Middle decisions (100 env steps)
+    after an explore period: a new exploit period, with a fresh window and (``reset_stats``)
+      fresh homeostasis statistics
 
-The mode in effect during a step is the one before that step's switch decision; a Middle goal
-picked at a segment's end uses the mode of the next step.
+Deliberate differences from the paper's code (README, fidelity table): explore periods last
+the stated 100 steps (its counter bug makes them about 300); homeostasis divides by the
+standard deviation (it divides by the variance squared); after its first check it keeps
+checking every decision but with a window of one segment and no reward (its accumulators are
+reset and never refilled): here the window slides over the last k segments; D is in the
+Middle critic's units (0.1-scaled segment rewards; its code subtracts raw sums); tau =
+min(n, 100 / rho) with n the checks since the reset (its code passes 30 every time).
 """
 
 from __future__ import annotations
@@ -27,12 +38,13 @@ from nonmono_jax import hierarchy, homeostasis
 
 @struct.dataclass
 class TriggerState:
-  """One env's trigger: homeostasis, the value window and the explore steps left."""
+  """One env's trigger: homeostasis, the value window and the explore decisions left."""
 
   homeostasis: homeostasis.HomeostasisState
-  values: jax.Array  # (k + 1,) V(s_{t-k}) .. V(s_t)
-  rewards: jax.Array  # (k,) r_{t-k} .. r_{t-1}
-  explore_left: jax.Array  # int32: steps left in the current explore period (0: exploit)
+  values: jax.Array  # (k + 1,) V at the last k + 1 Middle decisions of the exploit period
+  rewards: jax.Array  # (k,) R_M of the k segments between them
+  filled: jax.Array  # int32: segments in the window (at most k)
+  explore_left: jax.Array  # int32: Middle decisions left in the explore period (0: exploit)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -40,47 +52,58 @@ class InformedSwitch:
   config: homeostasis.HomeostasisConfig
   explore_mode: int
   init: Callable[[jax.Array], TriggerState]
-  reset: Callable[[TriggerState, jax.Array], TriggerState]
+  restart: Callable[[TriggerState, jax.Array], TriggerState]
   mode: Callable[[TriggerState], jax.Array]
-  step: Callable[..., tuple[TriggerState, jax.Array]]
+  decide: Callable[..., tuple[TriggerState, jax.Array]]
 
 
-def make_informed_switch(config: homeostasis.HomeostasisConfig,
-                         explore_mode: int) -> InformedSwitch:
+def make_informed_switch(config: homeostasis.HomeostasisConfig, explore_mode: int,
+                         c: int) -> InformedSwitch:
+  """The trigger of Middle decisions every ``c`` env steps (``explore_steps`` a multiple of c)."""
   k = config.k
+  explore_decisions = config.explore_steps // c
 
-  def reset(state: TriggerState, v0):
-    """An episode starts: explore for ``explore_steps``; the window restarts at V(s_0)."""
-    return state.replace(values=jp.full((k + 1,), v0), rewards=jp.zeros((k,)),
-                         explore_left=jp.asarray(config.explore_steps, jp.int32))
+  def restart(state: TriggerState, v):
+    """A new exploit period from a state of value v: fresh window (and statistics)."""
+    h = homeostasis.init() if config.reset_stats else state.homeostasis
+    return state.replace(homeostasis=h, values=jp.full((k + 1,), v), rewards=jp.zeros((k,)),
+                         filled=jp.zeros((), jp.int32), explore_left=jp.zeros((), jp.int32))
 
   def init(v0):
-    return reset(TriggerState(homeostasis=homeostasis.init(), values=jp.zeros((k + 1,)),
-                              rewards=jp.zeros((k,)), explore_left=jp.zeros((), jp.int32)), v0)
+    zero = jp.zeros((), jp.int32)
+    return restart(TriggerState(homeostasis=homeostasis.init(), values=jp.zeros((k + 1,)),
+                                rewards=jp.zeros((k,)), filled=zero, explore_left=zero), v0)
 
   def mode(state: TriggerState):
     return jp.where(state.explore_left > 0, explore_mode, hierarchy.TD3).astype(jp.int32)
 
-  def step(state: TriggerState, v_next, reward, key, window_full):
-    """After an env step: slide the window and maybe switch to explore.
-
-    ``window_full`` (unbatched: at least k steps into the episode) gates homeostasis.
-    Returns the new state and whether it switched.
-    """
-    values = jp.concatenate([state.values[1:], v_next[None]])
+  def exploit(state: TriggerState, v, reward, key):
+    """Slide the window by one segment; once it is full, homeostasis may switch."""
+    values = jp.concatenate([state.values[1:], v[None]])
     rewards = jp.concatenate([state.rewards[1:], reward[None]])
-    exploiting = state.explore_left == 0
-    left = jp.maximum(state.explore_left - 1, 0)
-    state = state.replace(values=values, rewards=rewards, explore_left=left)
+    filled = jp.minimum(state.filled + 1, k)
+    x = homeostasis.value_promise_discrepancy(values[0], rewards, values[k], config.gamma)
+    h, switch = homeostasis.update(state.homeostasis, x, key, config.rho)
+    check = filled >= k
+    h = jax.tree.map(lambda new, old: jp.where(check, new, old), h, state.homeostasis)
+    switch = switch & check
+    left = jp.where(switch, explore_decisions, 0).astype(jp.int32)
+    return state.replace(homeostasis=h, values=values, rewards=rewards, filled=filled,
+                         explore_left=left), switch
 
-    def trigger(state):
-      x = homeostasis.value_promise_discrepancy(values[0], rewards, values[k], config.gamma)
-      h, switch = homeostasis.update(state.homeostasis, x, key, config.rho)
-      switch = switch & exploiting
-      left = jp.where(switch, config.explore_steps, state.explore_left).astype(jp.int32)
-      return state.replace(homeostasis=h, explore_left=left), switch
+  def decide(state: TriggerState, v, reward, key):
+    """At a Middle decision: V(s) of the new segment's start, R_M of the finished segment.
 
-    return jax.lax.cond(window_full, trigger, lambda s: (s, jp.zeros((), bool)), state)
+    Returns the new state (``mode`` gives the next segment's mode) and whether it switched
+    to explore.
+    """
+    left = state.explore_left - 1
+    explored = jax.tree.map(lambda a, b: jp.where(left == 0, a, b), restart(state, v),
+                            state.replace(explore_left=jp.maximum(left, 0)))
+    exploited, switch = exploit(state, v, reward, key)
+    exploring = state.explore_left > 0
+    new = jax.tree.map(lambda a, b: jp.where(exploring, a, b), explored, exploited)
+    return new, switch & ~exploring
 
-  return InformedSwitch(config=config, explore_mode=explore_mode, init=init, reset=reset,
-                        mode=mode, step=step)
+  return InformedSwitch(config=config, explore_mode=explore_mode, init=init, restart=restart,
+                        mode=mode, decide=decide)

@@ -41,9 +41,9 @@ class TD3Config:
   batch_size: int = 100
   policy_noise: float = 0.2  # target smoothing noise std (absolute, as the HIRO port)
   noise_clip: float = 0.5
-  policy_delay: int = 2
+  policy_delay: int = 1  # the paper's code: policy_freq = 1 (TD3's paper: 2)
   expl_noise: float = 1.0  # behaviour noise std before clipping (Low: N(0, 1) on torques)
-  buffer_size: int = 200_000
+  buffer_size: int = 200_000  # a ring; the run presets size it to the run (never evicts)
   target_smoothing: bool = True
 
   def __post_init__(self):

@@ -156,27 +156,62 @@ def test_ours_starts_in_random_then_the_top_chooses(runs):
   np.testing.assert_array_equal(np.moveaxis(np.asarray(r.end.top_rollout.action), 2, 0), last)
 
 
+def _explore_runs(modes, explore):
+  """(start, length) of each run of ``explore`` in a (T,) mode sequence."""
+  runs, start = [], None
+  for t, m in enumerate(list(modes) + [-1]):
+    if m == explore and start is None:
+      start = t
+    elif m != explore and start is not None:
+      runs.append((start, t - start))
+      start = None
+  return runs
+
+
 @pytest.mark.parametrize("method,explore", [("ref-uniform", hierarchy.RANDOM),
                                             ("ref-ppo", hierarchy.PPO)])
-def test_ref_switches_only_through_the_trigger_and_explores_exactly(runs, method, explore):
+def test_ref_starting_phase_then_only_the_trigger(runs, method, explore):
+  """The paper's Ref code: explore through warm-up + the starting mode, then exploit; after
+  that only the trigger starts explore periods, at Middle decisions, each exactly
+  ``explore_steps`` long, and only once the exploit period holds k segments."""
   r = runs(method)
+  live_from, k = WARMUP + STARTING, r.config.homeostasis.k
   assert set(np.unique(r.modes)) == {hierarchy.TD3, explore}
-  np.testing.assert_array_equal(r.modes == explore, r.left > 0)
-  t = np.arange(STEPS - 1)
-  episode_start = ((t + 1) % EPISODE == 0)[:, None, None]
-  left, nxt = r.left[:-1], r.left[1:]
-  # Each episode starts with a whole explore period (X); otherwise the counter runs down ...
-  assert np.all(nxt[np.broadcast_to(episode_start, nxt.shape)] == EXPLORE)
-  running = (left > 0) & ~episode_start
-  np.testing.assert_array_equal(nxt[running], left[running] - 1)
-  # ... and leaves 0 only through a switch of the trigger, to a full period.
-  jumps = (left == 0) & (nxt > 0) & ~episode_start
-  assert np.all(nxt[jumps] == EXPLORE)
-  live = (left == 0) & ~episode_start
-  switches = r.metrics["switch/switches"][:-1][~episode_start[:, 0, 0]]  # a reset overrides
-  np.testing.assert_array_equal(switches.sum(), jumps.sum())
-  assert jumps[WARMUP:].sum() > 0 and jumps[:WARMUP].sum() == 0  # the trigger fires, after warm-up
-  assert live.sum() > jumps.sum()
+  assert np.all(r.modes[:live_from] == explore) and np.all(r.modes[live_from] == hierarchy.TD3)
+  switches = r.metrics["switch/switches"]
+  assert switches[:live_from].sum() == 0
+  n_runs = 0
+  for seed in range(SEEDS):
+    for e in range(ENVS):
+      exploit_from = live_from
+      for start, length in _explore_runs(r.modes[:, seed, e], explore)[1:]:
+        assert start % C == 0 and start - exploit_from >= k * C, (start, exploit_from)
+        assert length == EXPLORE or start + length == STEPS, length
+        exploit_from = start + length
+        n_runs += 1
+  assert n_runs == switches.sum() > 0  # every explore period is one switch of the trigger
+  episode_starts = r.modes[EPISODE::EPISODE]  # no explore period at an episode's start (X)
+  assert np.mean(episode_starts == explore) < 0.5
+
+
+@pytest.mark.parametrize("method", ALL)
+def test_counts_in_env_steps_and_middle_decisions(runs, method):
+  """Counts in the paper's unit (Middle decisions) and in env steps, after warm-up and after
+  the starting mode, add up."""
+  r = runs(method)
+  end, live_from = r.end, WARMUP + (0 if method == "hiro" else STARTING)  # HIRO: no start
+  decisions = (STEPS - WARMUP) // C + 1  # per env: at t + 1 = WARMUP, ..., STEPS
+  np.testing.assert_array_equal(end.mode_decisions.sum(-1), decisions * ENVS)
+  np.testing.assert_array_equal(end.mode_decisions_after_start.sum(-1),
+                                ((STEPS - live_from) // C + 1) * ENVS)
+  np.testing.assert_array_equal(end.mode_steps_after_start.sum(-1), (STEPS - live_from) * ENVS)
+  # each decision but the last (its segment has not run) holds for c env steps
+  last = np.stack([(np.asarray(end.mode) == j).sum(-1) for j in range(3)], -1)
+  np.testing.assert_array_equal(end.mode_steps + C * last, C * end.mode_decisions)
+  np.testing.assert_array_equal(end.mode_steps_after_start + C * last,
+                                C * end.mode_decisions_after_start)
+  for j, name in enumerate(hierarchy.MODES):
+    np.testing.assert_array_equal(r.metrics[f"decisions/{name}"].sum(0), end.mode_decisions[:, j])
 
 
 @pytest.mark.parametrize("method", ALL)

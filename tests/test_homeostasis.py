@@ -130,4 +130,5 @@ def test_config_validation_names_the_field(field, value):
 
 def test_config_defaults():
   config = homeostasis.HomeostasisConfig()
-  assert (config.rho, config.explore_steps, config.gamma, config.k) == (0.01, 100, 0.99, 10)
+  assert (config.rho, config.explore_steps, config.gamma, config.k, config.reset_stats) == (
+      0.01, 100, 0.99, 30, True)  # k in Middle segments, as the paper's Ref code
