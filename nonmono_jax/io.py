@@ -116,11 +116,11 @@ class MetricsFile:
     self.path = path
     if not os.path.exists(path):
       with open(path, "w", newline="") as f:
-        csv.writer(f).writerow(COLUMNS)
+        csv.writer(f, lineterminator="\n").writerow(COLUMNS)
 
   def append(self, rows: Iterable[dict]) -> None:
     with open(self.path, "a", newline="") as f:
-      w = csv.DictWriter(f, COLUMNS)
+      w = csv.DictWriter(f, COLUMNS, lineterminator="\n")
       for row in rows:
         w.writerow(row)
       f.flush()

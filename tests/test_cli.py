@@ -20,6 +20,11 @@ def _rows(out):
     return list(csv.DictReader(f))
 
 
+def _bytes(out):
+  with open(os.path.join(out, "metrics.csv"), "rb") as f:
+    return f.read()
+
+
 @pytest.fixture(scope="module")
 def reference(tmp_path_factory):
   """An uninterrupted tiny run of ours and Ref:PPO."""
@@ -73,6 +78,7 @@ def test_resume_after_a_stop_gives_the_same_metrics(reference, tmp_path):
     f.writelines(lines)
   assert cli.main("PointMaze", ["--resume", out, "--no-progress"]) == 0
   assert _rows(out) == _rows(reference)
+  assert _bytes(out) == _bytes(reference)  # one line ending, whatever the resume history
 
 
 def test_sigkill_leaves_a_resumable_run(reference, tmp_path):
@@ -94,6 +100,7 @@ def test_sigkill_leaves_a_resumable_run(reference, tmp_path):
   assert rows and {r["method"] for r in rows} <= {"ours", "ref-ppo"}
   assert cli.main("PointMaze", ["--resume", out, "--no-progress"]) == 0
   assert _rows(out) == _rows(reference)
+  assert _bytes(out) == _bytes(reference)  # one line ending, whatever the resume history
 
 
 def test_time_limit_stops_checkpointed_and_resume_completes_the_run(reference, tmp_path,
@@ -120,6 +127,7 @@ def test_time_limit_stops_checkpointed_and_resume_completes_the_run(reference, t
   monkeypatch.undo()
   assert cli.main("PointMaze", ["--resume", out, "--no-progress"]) == 0
   assert _rows(out) == _rows(reference)
+  assert _bytes(out) == _bytes(reference)  # one line ending, whatever the resume history
 
 
 def test_clock_estimates_the_next_chunk_by_the_last(tmp_path):
