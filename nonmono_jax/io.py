@@ -17,6 +17,7 @@ import csv
 import dataclasses
 import json
 import os
+import time
 from typing import Any, Iterable
 
 import jax
@@ -157,10 +158,14 @@ class Checkpoints:
 
   def __init__(self, directory: str, max_to_keep: int = 2):
     # Synchronous saves: the next chunk donates (overwrites) the state being saved.
+    self.directory = directory
     self.manager = ocp.CheckpointManager(
         os.path.abspath(directory),
         options=ocp.CheckpointManagerOptions(max_to_keep=max_to_keep, create=True,
-                                             enable_async_checkpointing=False))
+                                             enable_async_checkpointing=False),
+        # One item, said up front: otherwise orbax infers the layout from the latest step
+        # folder, and one broken (emptied) folder makes every step fail to restore.
+        item_handlers=ocp.StandardCheckpointHandler())
 
   def latest_step(self) -> int | None:
     return self.manager.latest_step()
@@ -184,8 +189,41 @@ class Checkpoints:
     got = self.manager.restore(step, args=ocp.args.StandardRestore(abstract))
     return jax.tree.unflatten(treedef, [got.get(str(i), x) for i, x in enumerate(leaves)])
 
+  def restore_newest(self, like, log=print, move_aside: bool = True):
+    """(step, state) of the newest checkpoint that restores, or (None, ``like``) if there is
+    none. Newer ones that do not restore are logged in one line each and (``move_aside``, the
+    run's writer only) moved to ``<directory>.broken/``, kept, so that the run can save those
+    steps again. Raises CheckpointError, moving nothing, if there were checkpoints and none
+    restores."""
+    steps, failed = sorted(self.manager.all_steps(), reverse=True), []
+    for step in steps:
+      try:
+        state = self.restore(step, like)
+      except Exception as e:  # noqa: BLE001 - whatever orbax raises, the checkpoint is unusable
+        failed.append((step, (str(e).strip().splitlines() or [type(e).__name__])[0][:160]))
+        continue
+      for bad, reason in failed:
+        moved = f"; moved to {self._move_aside(bad)}" if move_aside else ""
+        log(f"skipped checkpoint {self.directory}/{bad} (it does not restore: {reason}){moved}")
+      return step, state
+    if steps:
+      raise CheckpointError(f"no checkpoint in {self.directory} restores (step {failed[0][0]}: "
+                            f"{failed[0][1]})")
+    return None, like
+
+  def _move_aside(self, step: int) -> str:
+    aside = os.path.join(self.directory + ".broken", f"{step}-{time.strftime('%Y%m%d-%H%M%S')}")
+    os.makedirs(os.path.dirname(aside), exist_ok=True)
+    os.replace(os.path.join(self.directory, str(step)), aside)
+    self.manager.reload()
+    return aside
+
   def close(self) -> None:
     self.manager.close()
+
+
+class CheckpointError(RuntimeError):
+  """No checkpoint of a method restores."""
 
 
 def first_non_finite(states, metrics: dict) -> tuple[int, str] | None:
