@@ -31,15 +31,54 @@ ABLATIONS = ("ours", "ours-no-reward-mod", "ours-no-loss-mod", "ours-no-mods")
 MODE_COLORS = {"TD3": "tab:blue", "PPO": "tab:orange", "RANDOM": "tab:green"}
 
 
+REQUIRED = ("task", "method", "seed", "env_step", "eval_success", "eval_return",
+            *(f"cum_steps_{m}" for m in MODES))
+
+
 def load(dirs) -> list[dict]:
+  """Every folder's rows, all checked before anything is drawn; raises ValueError naming the
+  file and line. A half-written last line (a run killed mid-row) is skipped, as resume does."""
   rows = []
   for d in dirs:
     path = os.path.join(d, "metrics.csv")
-    if not os.path.exists(path):
-      raise FileNotFoundError(f"{path} not found (is {d} a run folder?)")
-    with open(path, newline="") as f:
-      rows.extend(csv.DictReader(f))
+    if not os.path.isfile(path):
+      raise ValueError(f"{path} not found (is {d} a run folder?)")
+    rows.extend(_read(path))
   return rows
+
+
+def _read(path: str) -> list[dict]:
+  try:
+    with open(path, newline="") as f:
+      text = f.read()
+  except (OSError, UnicodeDecodeError) as e:
+    raise ValueError(f"{path}: cannot be read ({e})") from None
+  lines = text.splitlines()
+  header = next(csv.reader(lines[:1]), [])
+  missing = [c for c in REQUIRED if c not in header]
+  if missing:
+    raise ValueError(f"{path}: the header is not a metrics file's (no {', '.join(missing)})")
+  parsed = list(csv.reader(lines[1:]))
+  if parsed and (not text.endswith("\n") or not _row_ok(header, parsed[-1])):
+    parsed = parsed[:-1]  # half-written
+  for i, values in enumerate(parsed):
+    if not _row_ok(header, values):
+      raise ValueError(f"{path}: line {i + 2} is malformed: {lines[i + 1][:60]!r}")
+  return [dict(zip(header, values)) for values in parsed]
+
+
+def _row_ok(header, values) -> bool:
+  if len(values) != len(header):
+    return False
+  row = dict(zip(header, values))
+  try:
+    int(row["env_step"]), int(row["seed"])
+    for c in REQUIRED[4:]:
+      if row[c] != "":
+        float(row[c])
+  except ValueError:
+    return False
+  return True
 
 
 def curves(rows, task, method, column):
@@ -168,8 +207,10 @@ def main(argv=None) -> int:
   try:
     written = plot(args.dirs, args.out)
     rows = load(args.dirs) if args.table else None
-  except FileNotFoundError as e:
-    p.error(str(e))
+  except ValueError as e:
+    p.exit(2, f"{p.prog}: error: {e}\n")
+  except OSError as e:  # the figure folder
+    p.exit(2, f"{p.prog}: error: {e.filename}: {e.strerror}\n")
   for path in written:
     print(path)
   if rows is not None:

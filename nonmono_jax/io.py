@@ -110,8 +110,13 @@ def chunk_rows(task: str, method: str, env_step: int, states, metrics: dict,
   return rows
 
 
+class MetricsError(ValueError):
+  """``metrics.csv`` is not a file this version wrote (one line naming the file)."""
+
+
 class MetricsFile:
-  """``metrics.csv``: rows appended and flushed to disk after every chunk."""
+  """``metrics.csv``: rows appended and flushed to disk after every chunk; LF line endings
+  always, so that a resumed run's file is byte for byte the one of a run that never stopped."""
 
   def __init__(self, path: str):
     self.path = path
@@ -132,15 +137,12 @@ class MetricsFile:
       return list(csv.DictReader(f))
 
   def truncate(self, method: str, env_step: int) -> int:
-    """Drop ``method``'s rows past ``env_step`` and any malformed line; returns rows dropped."""
-    with open(self.path, newline="") as f:
-      lines = f.read().splitlines()
-    keep, dropped = [lines[0]], 0
-    for line in lines[1:]:
-      values = next(csv.reader([line]), [])
-      row = dict(zip(COLUMNS, values))
-      bad = len(values) != len(COLUMNS)
-      if bad or (row["method"] == method and int(row["env_step"]) > env_step):
+    """Drop ``method``'s rows past ``env_step`` and a half-written last line; returns rows
+    dropped. Raises MetricsError for a wrong header or a malformed line before the last."""
+    keep, dropped = [",".join(COLUMNS)], 0
+    for line in good_lines(self.path):
+      row = dict(zip(COLUMNS, next(csv.reader([line]))))
+      if row["method"] == method and int(row["env_step"]) > env_step:
         dropped += 1
         continue
       keep.append(line)
@@ -151,6 +153,37 @@ class MetricsFile:
       os.fsync(f.fileno())
     os.replace(tmp, self.path)
     return dropped
+
+
+def good_lines(path: str) -> list[str]:
+  """The data lines of a ``metrics.csv``, without a half-written last line (one a kill cut
+  short: no final newline, or the wrong number of fields); raises MetricsError otherwise."""
+  try:
+    with open(path, newline="") as f:
+      text = f.read()
+  except UnicodeDecodeError:
+    raise MetricsError(f"{path}: not a text file") from None
+  lines = text.splitlines()
+  if not lines or next(csv.reader([lines[0]]), []) != list(COLUMNS):
+    raise MetricsError(f"{path}: the header is not this version's columns (not a metrics "
+                       f"file of this code)")
+  lines = lines[1:]
+  if lines and (not text.endswith("\n") or not _well_formed(lines[-1])):
+    lines = lines[:-1]
+  for i, line in enumerate(lines):
+    if not _well_formed(line):
+      raise MetricsError(f"{path}: line {i + 2} is malformed: {line[:60]!r}")
+  return lines
+
+
+def _well_formed(line: str) -> bool:
+  values = next(csv.reader([line]), [])
+  if len(values) != len(COLUMNS):
+    return False
+  try:
+    return int(values[3]) >= 0  # env_step
+  except ValueError:
+    return False
 
 
 class Checkpoints:
