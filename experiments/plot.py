@@ -5,12 +5,14 @@ Per task found in the folders' ``metrics.csv`` files:
 - ``<task>_success``: S_E (evaluation success rate of Middle TD3 + Low TD3) and the evaluation
   return against env steps, one line per method: the mean over seeds with a band of one
   standard deviation (the paper's success-rate and reward figures);
-- ``<task>_modes``: for every method, the cumulative env steps run in each mode (TD3 =
-  exploitation, PPO and RANDOM = exploration) against env steps (the paper's mode counts);
+- ``<task>_modes``: for every method, the cumulative Middle decisions made in each mode (TD3 =
+  exploitation, PPO and RANDOM = exploration; one decision per c = 10 env steps, the unit of
+  the paper's mode counts) against env steps (runs from before these columns: env steps);
 - ``<task>_ablation``: S_E of ours and its ablations, where the folders hold any of them.
 
 Each is written as PNG and PDF into ``--out`` (default: ``DIR/figures`` of the first folder);
-``--table`` also prints final and best S_E (mean +- std over seeds) and the steps per mode.
+``--table`` also prints final and best S_E (mean +- std over seeds) and the Middle decisions
+per mode after the starting mode (the paper's unit; env steps in brackets).
 """
 
 from __future__ import annotations
@@ -85,7 +87,7 @@ def curves(rows, task, method, column):
   """(steps, mean, std) over seeds of ``column``; steps where every seed has a value."""
   by_step = defaultdict(dict)
   for r in rows:
-    if r["task"] == task and r["method"] == method and r[column] != "":
+    if r["task"] == task and r["method"] == method and r.get(column, "") != "":
       by_step[int(r["env_step"])][r["seed"]] = float(r[column])
   n_seeds = max((len(v) for v in by_step.values()), default=0)
   steps = sorted(s for s, v in by_step.items() if len(v) == n_seeds)
@@ -95,9 +97,18 @@ def curves(rows, task, method, column):
   return np.array(steps), values.mean(1), values.std(1), n_seeds
 
 
+def _last(rows, task, method, column):
+  """The mean over seeds of ``column`` at the last logged step (None: a run without it)."""
+  if not any(column in r and r[column] != "" for r in rows):
+    return None
+  _, mean, _, n = curves(rows, task, method, column)
+  return float(mean[-1]) if n else None
+
+
 def summary(rows) -> list[dict]:
-  """Per task and method: final and best mean S_E (with the std across seeds) and the mean
-  cumulative env steps per mode at the last logged step."""
+  """Per task and method: final and best mean S_E (with the std across seeds), the mean
+  cumulative env steps per mode at the last logged step, and per mode the mean Middle
+  decisions and env steps after the starting mode (None for runs without those columns)."""
   out = []
   for task in sorted({r["task"] for r in rows}):
     for m in LABELS:
@@ -106,24 +117,39 @@ def summary(rows) -> list[dict]:
         continue
       best = int(np.argmax(mean))
       modes = {mode: curves(rows, task, m, f"cum_steps_{mode}")[1] for mode in MODES}
+      after = {mode: _last(rows, task, m, f"cum_decisions_after_start_{mode}")
+               for mode in MODES}
+      after_steps = {mode: _last(rows, task, m, f"cum_steps_after_start_{mode}")
+                     for mode in MODES}
       out.append({"task": task, "method": m, "seeds": n, "env_steps": int(steps[-1]),
                   "final_s_e": float(mean[-1]), "final_s_e_std": float(std[-1]),
                   "best_s_e": float(mean[best]), "best_s_e_std": float(std[best]),
                   "best_at": int(steps[best]),
                   **{f"steps_{mode}": float(v[-1]) if len(v) else 0.0
-                     for mode, v in modes.items()}})
+                     for mode, v in modes.items()},
+                  **{f"decisions_after_start_{mode}": v for mode, v in after.items()},
+                  **{f"steps_after_start_{mode}": v for mode, v in after_steps.items()}})
   return out
 
 
+def _modes_cell(r) -> str:
+  """Per-seed mean Middle decisions per mode after the starting mode (env steps in brackets);
+  runs from before the decision columns show env steps after warm-up."""
+  if r.get("decisions_after_start_TD3") is None:
+    return " / ".join(f"{r[f'steps_{m}']:.0f}" for m in MODES) + " env steps"
+  return " / ".join(f"{r[f'decisions_after_start_{m}']:.0f} ({r[f'steps_after_start_{m}']:.0f})"
+                    for m in MODES)
+
+
 def markdown_table(summary_rows) -> str:
-  lines = ["| task | method | seeds | env steps | final S_E | best S_E (at) | TD3 / PPO / RANDOM steps |",
+  lines = ["| task | method | seeds | env steps | final S_E | best S_E (at) | TD3 / PPO / RANDOM "
+           "Middle decisions after the starting mode, per seed (env steps) |",
            "|---|---|---|---|---|---|---|"]
   for r in summary_rows:
     lines.append(
         f"| {r['task']} | {LABELS[r['method']]} | {r['seeds']} | {r['env_steps']} | "
         f"{r['final_s_e']:.2f} +- {r['final_s_e_std']:.2f} | {r['best_s_e']:.2f} +- "
-        f"{r['best_s_e_std']:.2f} ({r['best_at']}) | {r['steps_TD3']:.0f} / "
-        f"{r['steps_PPO']:.0f} / {r['steps_RANDOM']:.0f} |")
+        f"{r['best_s_e_std']:.2f} ({r['best_at']}) | {_modes_cell(r)} |")
   return "\n".join(lines)
 
 
@@ -169,15 +195,18 @@ def plot(dirs, out=None) -> list[str]:
     written += _finish(fig, out, f"{task.lower()}_success")
     plt.close(fig)
 
-    fig, axes = plt.subplots(1, len(present), figsize=(3.6 * len(present), 3.4), sharey=True,
-                             squeeze=False)
+    fig, axes = plt.subplots(1, len(present), figsize=(max(3.6 * len(present), 6.5), 3.4),
+                             sharey=True, squeeze=False)
+    unit = "decisions" if all(r.get("cum_decisions_TD3", "") != "" for r in rows
+                              if r["task"] == task) else "steps"
     for ax, m in zip(axes[0], present):
       for mode in MODES:
-        steps, mean, std, _ = curves(rows, task, m, f"cum_steps_{mode}")
+        steps, mean, std, _ = curves(rows, task, m, f"cum_{unit}_{mode}")
         _band(ax, steps, mean, std, mode, MODE_COLORS[mode])
       ax.set(title=LABELS[m], xlabel="env steps")
       ax.grid(alpha=0.3)
-    axes[0][0].set_ylabel("env steps run in the mode (cumulative)")
+    axes[0][0].set_ylabel("Middle decisions in the mode (cumulative)" if unit == "decisions"
+                          else "env steps run in the mode (cumulative)")
     axes[0][0].legend(fontsize=8)
     fig.suptitle(f"{task}: exploitation (TD3) and exploration (PPO, RANDOM)")
     written += _finish(fig, out, f"{task.lower()}_modes")
