@@ -138,3 +138,22 @@ def test_evaluation_uses_the_target_actors():
   swapped = online(lp.replace(actor=lp.target_actor), mp.replace(actor=mp.target_actor), key)
   np.testing.assert_allclose(on_targets, swapped)
   assert not np.allclose(on_targets[1], online(lp, mp, key)[1])
+
+
+def test_table_counts_modes_in_middle_decisions():
+  """--table shows the paper's unit: Middle decisions after the starting mode (env steps in
+  brackets); a run from before those columns shows its env steps."""
+  from experiments import plot
+
+  def row(seed, **extra):
+    base = {"task": "PointMaze", "method": "ours", "seed": str(seed), "env_step": "1000",
+            "eval_success": "1.0", "eval_return": "-5", "cum_steps_TD3": "700",
+            "cum_steps_PPO": "200", "cum_steps_RANDOM": "100"}
+    return {**base, **extra}
+
+  new = {f"cum_decisions_after_start_{m}": v for m, v in zip(plot.MODES, ("60", "15", "5"))}
+  new.update({f"cum_steps_after_start_{m}": v for m, v in zip(plot.MODES, ("600", "150", "50"))})
+  table = plot.markdown_table(plot.summary([row(0, **new), row(1, **new)]))
+  assert "60 (600) / 15 (150) / 5 (50)" in table and "decisions" in table
+  old = plot.markdown_table(plot.summary([row(0), row(1)]))
+  assert "700 / 200 / 100 env steps" in old
