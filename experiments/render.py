@@ -28,7 +28,7 @@ from nonmono_jax import evaluate, io, train
 
 def rollout(run_dir: str, method: str | None = None, seed: int = 0, key: int = 0) -> dict:
   """One evaluation episode of a saved run: positions, goals, blocks, success per step."""
-  plan = cli.plan_from_json(io.read_json(os.path.join(run_dir, "config.json")), run_dir)
+  plan = cli.plan_from_json(cli.read_config(run_dir), run_dir)
   method = method or next(iter(plan.configs))
   if method not in plan.configs:
     raise ValueError(f"method {method!r} is not in this run ({', '.join(plan.configs)})")
@@ -42,8 +42,10 @@ def rollout(run_dir: str, method: str | None = None, seed: int = 0, key: int = 0
   if step is None:
     raise ValueError(f"no checkpoint of {method} in {run_dir}")
   like = jax.eval_shape(trainer.init, jax.random.PRNGKey(0))
-  states = ckpts.restore(step, like)
-  ckpts.close()
+  try:
+    step, states = ckpts.restore_newest(like, move_aside=False)
+  finally:
+    ckpts.close()
   pick = lambda tree: jax.tree.map(lambda x: x[seed], tree)
   low_params, middle_params = pick(states.low.params), pick(states.middle.params)
   agent = trainer.agent
@@ -128,8 +130,8 @@ def main(argv=None) -> int:
   args = p.parse_args(argv)
   try:
     roll = rollout(args.dir, args.method, args.seed, args.key)
-  except (ValueError, FileNotFoundError) as e:
-    p.error(str(e))
+  except (ValueError, OSError, io.CheckpointError) as e:
+    p.exit(2, f"{p.prog}: error: {e}\n")
   out = args.out or os.path.join(args.dir, f"{roll['method']}_seed{args.seed}.gif")
   n = draw(roll, out, args.max_frames)
   print(f"{out}: {n} frames, target reached: {bool(roll['success'].max())}")

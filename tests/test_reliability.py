@@ -1,0 +1,286 @@
+"""The run folder's promises under bad input and faults (issue 14): one writer, every value
+checked before anything is written, fallback to an older checkpoint, one line per failure with
+exit code 0 ok / 1 failed run / 2 bad input / 3 time limit."""
+
+import dataclasses
+import errno
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from experiments import cli
+from nonmono_jax import io, validation
+from tests_support import CACHE_DIR, ROOT, TINY_RUN
+
+
+def _bytes(out):
+  with open(os.path.join(out, "metrics.csv"), "rb") as f:
+    return f.read()
+
+
+def _main(capsys, argv, task="PointMaze"):
+  """(exit code, stderr lines, stdout) of the command, run in this process."""
+  try:
+    code = cli.main(task, argv)
+  except SystemExit as e:
+    code = e.code
+  got = capsys.readouterr()
+  return code, [l for l in got.err.splitlines() if l.strip()], got.out
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+  """An uninterrupted tiny run of ours (checkpoints 600 and 800 kept)."""
+  out = str(tmp_path_factory.mktemp("ref") / "run")
+  assert cli.main("PointMaze", TINY_RUN + ["--method", "ours", "--out", out]) == 0
+  return out
+
+
+def _copy(reference, tmp_path):
+  out = str(tmp_path / "run")
+  shutil.copytree(reference, out)
+  return out
+
+
+# --- 1. one writer ------------------------------------------------------------------------------
+
+def test_a_second_writer_exits_2_naming_the_holder_and_a_dead_holder_leaves_no_lock(
+    reference, tmp_path, capsys):
+  out = str(tmp_path / "run")
+  env = {**os.environ, "PYTHONPATH": ROOT, "JAX_COMPILATION_CACHE_DIR": CACHE_DIR}
+  proc = subprocess.Popen([sys.executable, "-m", "experiments.pointmaze", *TINY_RUN,
+                           "--method", "ours", "--out", out], cwd=ROOT, env=env,
+                          stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+  deadline = time.time() + 300
+  while time.time() < deadline and not os.path.exists(os.path.join(out, "config.json")):
+    time.sleep(0.05)
+  code, err, _ = _main(capsys, ["--resume", out, "--no-progress"])
+  assert proc.poll() is None, "the first run ended before the second could try"
+  assert code == 2 and len(err) == 1 and f"in use by pid {proc.pid}" in err[0]
+  proc.send_signal(signal.SIGKILL)  # the holder dies: its lock goes with it
+  proc.wait()
+  assert cli.main("PointMaze", ["--resume", out, "--no-progress"]) == 0
+  assert _bytes(out) == _bytes(reference)
+
+
+# --- 2. every value checked before anything is written ------------------------------------------
+
+@pytest.mark.parametrize("argv,message", [
+    (["--goal_range", "nan", "4", "0"], "goal_range[0] must be a finite number"),
+    (["--top.alpha", "nan", "0", "0"], "top.alpha[0] must be a finite number"),
+    (["--low.policy_noise", "nan"], "low.policy_noise must be a finite number"),
+    (["--top.ppo.lr_actor", "inf"], "top.ppo.lr_actor must be a finite number"),
+    (["--low.lr_actor", "2"], "low.lr_actor must be in (0, 1]"),
+    (["--warmup_steps", "3000000000"], "warmup_steps must fit in an int32"),
+    (["--low.buffer_size", "2000000000"], "GiB available"),
+    (["--seeds", "100000"], "GiB available"),
+    (["--episode-length", "2000000000"], "GiB available"),
+    (["--c", "7"], "(from --c 7"),
+    (["--time-limit", "nan"], "--time-limit must be a positive number"),
+    (["--out", ""], "--out must not be empty"),
+])
+def test_bad_values_exit_2_in_one_line_before_the_folder_exists(tmp_path, capsys, argv, message):
+  out = tmp_path / "run"
+  argv = argv + (["--out", str(out)] if "--out" not in argv else [])
+  code, err, _ = _main(capsys, argv)
+  assert code == 2 and len(err) == 1 and message in err[0], err
+  assert not out.exists()
+
+
+def test_the_validator_walks_any_config_by_its_type_hints():
+  @dataclasses.dataclass(frozen=True)
+  class Inner:
+    rate: float = 0.1
+    limit: float = dataclasses.field(default=float("inf"), metadata={"infinite_ok": True})
+    sizes: tuple[int, ...] = (1, 2)
+
+  @dataclasses.dataclass(frozen=True)
+  class Outer:
+    inner: Inner = Inner()
+    steps: int = 5
+
+  validation.check(Outer())
+  for bad, message in ((Outer(inner=Inner(rate=float("inf"))), "inner.rate must be a finite"),
+                       (Outer(inner=Inner(limit=float("nan"))), "inner.limit must be a finite"),
+                       (Outer(inner=Inner(sizes=(1, 2**31))), "inner.sizes[1] must fit"),
+                       (Outer(steps=-2**31 - 1), "steps must fit in an int32")):
+    with pytest.raises(ValueError, match=message.replace("[", r"\[").replace("]", r"\]")):
+      validation.check(bad)
+
+
+# --- 3. a corrupted latest checkpoint ------------------------------------------------------------
+
+def _truncate_data(step_dir):
+  for root, _, files in os.walk(os.path.join(step_dir, "default")):
+    for name in files:
+      if "ocdbt.process" in root and os.sep + "d" in root:
+        with open(os.path.join(root, name), "r+b") as f:
+          f.truncate(3)
+
+
+def _remove_manifest(step_dir):
+  for root, _, files in os.walk(step_dir):
+    for name in files:
+      if name == "manifest.ocdbt":
+        os.remove(os.path.join(root, name))
+
+
+def _empty(step_dir):
+  shutil.rmtree(step_dir)
+  os.makedirs(step_dir)
+
+
+@pytest.mark.parametrize("corrupt,bad,good", [(_truncate_data, "800", 600),
+                                               (_remove_manifest, "800", 600),
+                                               (_empty, "800", 600),
+                                               (os.makedirs, "1000", 800)])  # a junk folder
+def test_resume_falls_back_to_the_newest_checkpoint_that_restores(reference, tmp_path, capsys,
+                                                                   corrupt, bad, good):
+  out = _copy(reference, tmp_path)
+  ckpts = os.path.join(out, "checkpoints", "ours")
+  corrupt(os.path.join(ckpts, bad))
+  code, err, stdout = _main(capsys, ["--resume", out, "--no-progress"])
+  assert code == 0, err
+  assert f"skipped checkpoint {ckpts}/{bad}" in stdout
+  assert f"ours: resumed from step {good}" in stdout
+  assert _bytes(out) == _bytes(reference)  # a lost last chunk ran again
+  assert len(os.listdir(ckpts + ".broken")) == 1  # kept aside, not deleted
+
+
+def test_no_checkpoint_restoring_is_one_line(reference, tmp_path, capsys):
+  out = _copy(reference, tmp_path)
+  for step in ("600", "800"):
+    _empty(os.path.join(out, "checkpoints", "ours", step))
+  code, err, _ = _main(capsys, ["--resume", out, "--no-progress"])
+  assert code == 2 and len(err) == 1 and "no checkpoint in" in err[0] and "restores" in err[0]
+
+
+# --- 4. what --resume may change -----------------------------------------------------------------
+
+@pytest.mark.parametrize("task,argv,message", [
+    ("PointMaze", ["--steps", "1600"], "--steps cannot change on --resume"),
+    ("PointMaze", ["--low.lr_actor", "0.5", "--method", "hiro"],
+     "--low.lr_actor, --method cannot change"),
+    ("PointPush", [], "it is a PointMaze run, not PointPush"),
+])
+def test_resume_refuses_what_cannot_change(reference, capsys, task, argv, message):
+  before = _bytes(reference)
+  code, err, _ = _main(capsys, ["--resume", reference, *argv], task)
+  assert code == 2 and len(err) == 1 and message in err[0], err
+  assert _bytes(reference) == before
+
+
+# --- 5. one line instead of a traceback ----------------------------------------------------------
+
+def test_bad_out_paths_are_one_line(tmp_path, capsys):
+  a_file = tmp_path / "file"
+  a_file.write_text("x")
+  for out, message in ((a_file, "exists and is not a folder"),
+                       (a_file / "run", "cannot create the folder"),
+                       (tmp_path / ("x" * 300), "cannot create the folder")):
+    code, err, _ = _main(capsys, ["--out", str(out)])
+    assert code == 2 and len(err) == 1 and message in err[0], err
+
+
+@pytest.mark.parametrize("edit,message", [
+    (lambda c: [c], "config.json: expected a JSON object, got a list"),
+    (lambda c: {k: v for k, v in c.items() if k != "run"}, "config.json: the key 'run' is"),
+    (lambda c: {**c, "run": {**c["run"], "chunk": 0}}, "config.json: --chunk must be >= 1"),
+])
+def test_a_malformed_config_json_is_one_line(reference, tmp_path, capsys, edit, message):
+  out = _copy(reference, tmp_path)
+  path = os.path.join(out, "config.json")
+  io.write_json(path, edit(io.read_json(path)))
+  code, err, _ = _main(capsys, ["--resume", out])
+  assert code == 2 and len(err) == 1 and message in err[0], err
+  from experiments import render
+
+  with pytest.raises(SystemExit) as e:
+    render.main([out])
+  assert e.value.code == 2
+
+
+def test_a_broken_metrics_file_or_a_missing_one_is_one_line(reference, tmp_path, capsys):
+  out = _copy(reference, tmp_path)
+  path = os.path.join(out, "metrics.csv")
+  with open(path, "rb") as f:
+    lines = f.read().split(b"\n")
+  with open(path, "wb") as f:
+    f.write(b"\n".join([b"not,a,header"] + lines[1:]))
+  code, err, _ = _main(capsys, ["--resume", out])
+  assert code == 2 and len(err) == 1 and "metrics.csv: the header is not" in err[0], err
+  os.remove(path)  # the rows before the checkpoints would be lost: refused, not rebuilt
+  code, err, _ = _main(capsys, ["--resume", out])
+  assert code == 2 and len(err) == 1 and "metrics.csv is missing" in err[0], err
+
+
+def test_a_full_disk_is_one_line_and_keeps_the_last_checkpoint(reference, tmp_path, monkeypatch,
+                                                                capsys):
+  append, calls = io.MetricsFile.append, []
+
+  def full(self, rows):  # the disk fills up in the third chunk
+    calls.append(1)
+    if len(calls) == 3:
+      raise OSError(errno.ENOSPC, "No space left on device", self.path)
+    append(self, rows)
+
+  monkeypatch.setattr(io.MetricsFile, "append", full)
+  out = str(tmp_path / "run")
+  code, err, _ = _main(capsys, TINY_RUN + ["--method", "ours", "--out", out])
+  assert code == 1 and len(err) == 1, err
+  assert "the disk is full (writing" in err[0] and "last good checkpoints: ours step 400" in err[0]
+  monkeypatch.undo()
+  assert cli.main("PointMaze", ["--resume", out, "--no-progress"]) == 0
+  assert _bytes(out) == _bytes(reference)
+
+
+def test_plot_skips_a_half_written_last_line_and_refuses_a_broken_file(reference, tmp_path,
+                                                                        capsys):
+  from experiments import plot
+
+  out = _copy(reference, tmp_path)
+  with open(os.path.join(out, "metrics.csv"), "ab") as f:
+    f.write(b"PointMaze,ours,0,1000,0.5,")  # a kill in the middle of a row
+  assert plot.main([out, "--out", str(tmp_path / "fig"), "--table"]) == 0
+  assert "| PointMaze | Ours | 2 | 800 |" in capsys.readouterr().out
+  with open(os.path.join(out, "metrics.csv"), "wb") as f:
+    f.write(b"task,method\nPointMaze,ours\n")
+  with pytest.raises(SystemExit) as e:
+    plot.main([out, "--out", str(tmp_path / "fig2")])
+  err = [l for l in capsys.readouterr().err.splitlines() if l.strip()]
+  assert e.value.code == 2 and len(err) == 1 and "metrics.csv: the header" in err[0]
+  assert not os.path.exists(tmp_path / "fig2")
+
+
+# --- 6. --time-limit always makes progress -------------------------------------------------------
+
+def test_a_too_short_time_limit_still_advances_a_chunk_per_process(reference, tmp_path, capsys):
+  out = str(tmp_path / "run")
+  argv = TINY_RUN + ["--method", "ours", "--out", out, "--time-limit", "1e-6"]
+  steps = []
+  for _ in range(4):
+    code, _, stdout = _main(capsys, argv if not steps else
+                            ["--resume", out, "--no-progress", "--time-limit", "1e-6"])
+    steps.append(max(int(r["env_step"]) for r in io.MetricsFile(
+        os.path.join(out, "metrics.csv")).read()))
+    assert code == (3 if len(steps) < 4 else 0)
+  assert steps == [200, 400, 600, 800]
+  assert _bytes(out) == _bytes(reference)
+
+
+# --- 7, 8. line endings; the first chunk failing -------------------------------------------------
+
+def test_metrics_use_one_line_ending(reference):
+  assert b"\r" not in _bytes(reference)
+
+
+def test_a_failing_first_chunk_says_there_is_no_checkpoint(tmp_path, monkeypatch, capsys):
+  monkeypatch.setattr(io, "first_non_finite", lambda states, metrics: (0, "low"))
+  code, err, _ = _main(capsys, TINY_RUN + ["--method", "ours", "--out", str(tmp_path / "r")])
+  assert code == 1 and len(err) == 1 and "no checkpoint was saved before it" in err[0], err
