@@ -1,0 +1,155 @@
+"""Where one training step's time goes on XLA:CPU: a per-op profile of the jitted chunk.
+
+Runs a chunk of the trainer (warm-up and starting mode 0, evaluation off, as
+``train_throughput``) under ``jax.profiler``, then reads the trace back (``ProfileData``): XLA:CPU
+records one event per executed thunk (a fusion, a dot, a copy, a loop), nested under its
+``while`` / ``cond``. Each thunk's self time (its duration less its children's) is summed per
+thunk and grouped two ways: by kind (``ynn_fusion`` = a dot run by YNNPACK, ``dot`` = Eigen,
+``copy``, loop fusions ...) and by the JAX operation that made it (the op_name metadata in the
+compiled HLO, e.g. ``MLP/dense_1/dot_general``). Tracing adds about 1 us per thunk, so the
+traced total exceeds the untimed step; the shares are what to read.
+
+    python -m benchmarks.profile_step --seeds 1 16                    # point preset, HIRO
+    python -m benchmarks.profile_step --method ours --hidden 300 300 --seeds 16 --steps 20
+
+Writes ``benchmarks/results/profile_step_<platform>_<date>.json`` and prints the tables.
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import dataclasses
+import glob
+import os
+import re
+import tempfile
+import time
+
+import jax
+from jax.profiler import ProfileData
+
+import envs
+from benchmarks import common
+from nonmono_jax import methods, train
+
+_STRIP = re.compile(r"jit\(local_chunk\)/|while/body/|closed_call/|vmap\(\)/|branch_\d_fun/"
+                    r"|cond/|jvp\(|transpose\(|vmap\(|checkpoint/|\)")
+
+
+def make_point_trainer(env_name, method, seeds, chunk, hidden=None):
+  """The trainer of ``train_throughput`` at the task's preset (optionally other TD3 layers)."""
+  env = envs.make(env_name, episode_length=100 if env_name.startswith("Point") else 1000)
+  base = methods.make_config(method, env_name)
+  if hidden:
+    base = dataclasses.replace(base, low=dataclasses.replace(base.low, hidden=tuple(hidden)),
+                               middle=dataclasses.replace(base.middle, hidden=tuple(hidden)))
+  config = dataclasses.replace(base, warmup_steps=0, eval_every=10**9,
+                               top=dataclasses.replace(base.top, starting_steps=0))
+  return train.make_trainer(env, config, num_seeds=seeds, chunk_steps=chunk)
+
+
+def thunk_self_times(xplane: str) -> dict:
+  """{thunk name: [count, self ns]} over the XLA:CPU worker threads of a trace."""
+  agg = collections.defaultdict(lambda: [0, 0])
+  for plane in ProfileData.from_file(xplane).planes:
+    for line in plane.lines:
+      if not line.name.startswith("tf_XLA"):
+        continue
+      events = sorted(((e.start_ns, e.duration_ns, e.name) for e in line.events),
+                      key=lambda e: (e[0], -e[1]))
+      stack = []  # [end, name, children's ns, duration]
+
+      def pop():
+        _, name, child, dur = stack.pop()
+        agg[name][0] += not name.startswith("end: ")  # an async thunk's end: no new op
+        agg[name][1] += dur - child
+      for start, dur, name in events:
+        while stack and stack[-1][0] <= start:
+          pop()
+        if stack:
+          stack[-1][2] += dur
+        stack.append([start + dur, name, 0, dur])
+      while stack:
+        pop()
+  for waiting in ("ThunkExecutor::Execute", "ThunkExecutor::Execute (wait for completion)"):
+    agg.pop(waiting, None)  # the caller's wait for the program, no work of its own
+  return dict(agg)
+
+
+def op_names(hlo_text: str) -> dict:
+  """{HLO instruction name: shortened JAX op_name} from the compiled module's metadata."""
+  out = {}
+  for m in re.finditer(r"^\s+(?:ROOT )?%([\w.\-]+) = .*?op_name=\"([^\"]*)\"", hlo_text, re.M):
+    out[m.group(1)] = _STRIP.sub("", m.group(2))
+  return out
+
+
+def group(times: dict, key, steps: int, top: int) -> list[dict]:
+  total = sum(ns for _, ns in times.values())
+  acc = collections.defaultdict(lambda: [0, 0])
+  for name, (count, ns) in times.items():
+    k = key(name)
+    acc[k][0] += count
+    acc[k][1] += ns
+  rows = sorted(acc.items(), key=lambda kv: -kv[1][1])[:top]
+  return [{"name": k, "us_per_step": ns / steps / 1e3, "share": ns / total,
+           "ops_per_step": c / steps} for k, (c, ns) in rows]
+
+
+def profile(env_name, method, seeds, steps, hidden, top) -> dict:
+  trainer = make_point_trainer(env_name, method, seeds, steps, hidden)
+  states = trainer.init(jax.random.PRNGKey(0))
+  compiled = trainer.chunk.lower(states, 0).compile()
+  states, _ = jax.block_until_ready(compiled(states, 0))
+  t0 = time.perf_counter()
+  states, _ = jax.block_until_ready(compiled(states, steps))
+  untraced = time.perf_counter() - t0
+  with tempfile.TemporaryDirectory() as d:
+    jax.profiler.start_trace(d)
+    jax.block_until_ready(compiled(states, 2 * steps))
+    jax.profiler.stop_trace()
+    times = thunk_self_times(sorted(glob.glob(f"{d}/**/*.xplane.pb", recursive=True))[-1])
+  names = op_names(compiled.as_text())
+  kind = lambda n: re.sub(r"[.\d]+$", "", n.replace("end: ", ""))
+  op = lambda n: names.get(n.replace("end: ", ""), "(" + kind(n) + ")")
+  return {"env": env_name, "method": method, "seeds": seeds, "hidden": hidden,
+          "load_average": os.getloadavg(),
+          "steps": steps,
+          "untraced_ms_per_step": untraced / steps * 1e3,
+          "traced_self_ms_per_step": sum(ns for _, ns in times.values()) / steps / 1e6,
+          "thunks_per_step": sum(c for c, _ in times.values()) / steps,
+          "by_kind": group(times, kind, steps, top), "by_op": group(times, op, steps, top)}
+
+
+def print_profile(r):
+  print(f"\n{r['env']} {r['method']} seeds {r['seeds']} hidden {r['hidden'] or 'preset'}: "
+        f"{r['untraced_ms_per_step']:.3f} ms/step untraced, {r['traced_self_ms_per_step']:.3f} "
+        f"traced, {r['thunks_per_step']:.0f} thunks/step")
+  for title in ("by_kind", "by_op"):
+    print(f"  {title}:")
+    for row in r[title]:
+      print(f"    {row['us_per_step']:9.1f} us/step {100 * row['share']:5.1f}% "
+            f"{row['ops_per_step']:7.1f} ops/step  {row['name']}")
+
+
+def main(argv=None):
+  p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+  p.add_argument("--env", default="PointPush")
+  p.add_argument("--method", default="hiro", choices=methods.METHODS)
+  p.add_argument("--seeds", nargs="+", type=int, default=[1, 16])
+  p.add_argument("--hidden", nargs="+", type=int, default=None,
+                 help="Low and Middle TD3 layers (default: the task's preset)")
+  p.add_argument("--steps", type=int, default=100, help="env steps in the traced chunk")
+  p.add_argument("--top", type=int, default=20, help="rows per table")
+  p.add_argument("--out", default=common.RESULTS)
+  args = p.parse_args(argv)
+  rows = []
+  for s in args.seeds:
+    rows.append(profile(args.env, args.method, s, args.steps, args.hidden, args.top))
+    print_profile(rows[-1])
+  common.write_result("profile_step", args.out, argv, results=rows)
+
+
+if __name__ == "__main__":
+  main()
