@@ -42,8 +42,8 @@ def test_ours_learns_point_maze(random_policy):
   states, metrics = _train("ours", 4)
   s_e, dist = np.asarray(states.s_e), np.asarray(states.eval_distance)
   print("ours S_E", s_e, "distance", dist, "modes", np.asarray(states.mode_steps))
-  # Measured on this CPU: S_E = 1, 1, 1, 0 at 40K steps; after the starting mode TD3 ran
-  # most steps.
+  # Measured on this CPU (2026-11-23): S_E = 0, 0, 1, 1 at 40K steps; after the starting
+  # mode TD3 ran most steps.
   assert (s_e >= 0.8).sum() >= 2, s_e
   assert s_e.mean() > random_policy["success_rate"] + 0.4
   assert np.all(metrics["top/updated"] > 0) and np.all(metrics["middle_ppo/updated"] > 0)
@@ -56,8 +56,8 @@ def test_hiro_learns_point_maze(random_policy):
   states, metrics = _train("hiro", 8)
   s_e, dist = np.asarray(states.s_e), np.asarray(states.eval_distance)
   print("hiro S_E", s_e, "distance", dist)
-  # Measured (this CPU): S_E = 1 in 2 of 8 seeds at 40K steps; the others stop at the wall
-  # (final distance 6.5-6.7 against a random policy's 8.8).
+  # Measured (this CPU, 2026-11-23): S_E = 1 in 1 of 8 seeds at 40K steps; the others stop
+  # at the wall (final distance 6.2-7.0, one 9.6, against a random policy's 8.8).
   assert (s_e >= 0.8).sum() >= 1, s_e
   assert np.median(dist) < random_policy["final_distance"] - 1.5, (dist, random_policy)
   assert np.all(metrics["low/critic_loss"] > 0)
