@@ -13,10 +13,14 @@ checkpoint the run restarts from (and a half-written last line).
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import dataclasses
+import io as _stdio
 import json
 import os
+import sys
+import tempfile
 import time
 from typing import Any, Iterable
 
@@ -229,19 +233,24 @@ class Checkpoints:
     steps again. Raises CheckpointError, moving nothing, if there were checkpoints and none
     restores."""
     steps, failed = sorted(self.manager.all_steps(), reverse=True), []
+    with _stderr_dropped_if(lambda: failed):
+      step, state = self._first_restoring(steps, like, failed)
+    for bad, reason in failed:
+      moved = f"; moved to {self._move_aside(bad)}" if move_aside and step is not None else ""
+      log(f"skipped checkpoint {self.directory}/{bad} (it does not restore: {reason}){moved}")
+    if step is None and steps:
+      raise CheckpointError(f"no checkpoint in {self.directory} restores (step {failed[0][0]}: "
+                            f"{failed[0][1]})")
+    return step, state
+
+  def _first_restoring(self, steps, like, failed):
     for step in steps:
       try:
         state = self.restore(step, like)
       except Exception as e:  # noqa: BLE001 - whatever orbax raises, the checkpoint is unusable
         failed.append((step, (str(e).strip().splitlines() or [type(e).__name__])[0][:160]))
         continue
-      for bad, reason in failed:
-        moved = f"; moved to {self._move_aside(bad)}" if move_aside else ""
-        log(f"skipped checkpoint {self.directory}/{bad} (it does not restore: {reason}){moved}")
       return step, state
-    if steps:
-      raise CheckpointError(f"no checkpoint in {self.directory} restores (step {failed[0][0]}: "
-                            f"{failed[0][1]})")
     return None, like
 
   def _move_aside(self, step: int) -> str:
@@ -253,6 +262,31 @@ class Checkpoints:
 
   def close(self) -> None:
     self.manager.close()
+
+
+@contextlib.contextmanager
+def _stderr_dropped_if(failed):
+  """Holds back what the block writes to file descriptor 2 and drops it if ``failed()``: a
+  failed orbax restore leaves tensorstore callbacks that print hundreds of "Event loop is
+  closed" tracebacks (some after the restore returns), where the caller says what failed in
+  one line. Otherwise it is let through."""
+  sys.stderr.flush()
+  saved, python_stderr, held_text = os.dup(2), sys.stderr, _stdio.StringIO()
+  with tempfile.TemporaryFile() as held:
+    os.dup2(held.fileno(), 2)
+    sys.stderr = held_text  # the callbacks print through Python's sys.stderr
+    try:
+      yield
+    finally:
+      if failed():
+        time.sleep(0.5)  # the failed restore's late callbacks land here
+      sys.stderr = python_stderr
+      os.dup2(saved, 2)
+      os.close(saved)
+      if not failed():
+        held.seek(0)
+        os.write(2, held.read())
+        sys.stderr.write(held_text.getvalue())
 
 
 class CheckpointError(RuntimeError):
