@@ -31,7 +31,9 @@ import errno
 import math
 import os
 import platform
+import signal
 import sys
+import threading
 import time
 import typing
 from importlib import metadata
@@ -468,6 +470,8 @@ def train_method(plan: Plan, method: str, metrics_file: io.MetricsFile, progress
       if t_end % spec.checkpoint_every == 0 or t_end == spec.steps:
         ckpts.save(t_end, states)
       clock.progressed = True
+      if _INTERRUPTED.is_set():  # a Ctrl-C that JAX swallowed (raised in a GC callback)
+        raise KeyboardInterrupt
       chunk_s = time.monotonic() - t_chunk  # io.first_non_finite above waited for the chunk
       if t_start is None:
         clock.saw_first_chunk(chunk_s)
@@ -665,9 +669,10 @@ def _run(plan: Plan, args: argparse.Namespace) -> int:
         f"steps ({plan.preset}) -> {plan.out}", flush=True)
   clock = Clock.starting_now(args.time_limit, os.path.join(plan.out, "timing.json"))
   try:
-    for method in plan.configs:
-      train_method(plan, method, metrics_file, progress=not args.no_progress,
-                   tensorboard=args.tensorboard, clock=clock)
+    with _remembering_ctrl_c():
+      for method in plan.configs:
+        train_method(plan, method, metrics_file, progress=not args.no_progress,
+                     tensorboard=args.tensorboard, clock=clock)
   except NonFinite as e:
     print(f"error: {e}", file=sys.stderr)
     return EXIT_FAILED
@@ -684,6 +689,30 @@ def _run(plan: Plan, args: argparse.Namespace) -> int:
     return EXIT_FAILED
   print(f"done: {os.path.join(plan.out, 'metrics.csv')}", flush=True)
   return 0
+
+
+_INTERRUPTED = threading.Event()
+
+
+@contextlib.contextmanager
+def _remembering_ctrl_c():
+  """SIGINT raises KeyboardInterrupt as usual and is also remembered: one that lands in a
+  callback that swallows exceptions (JAX's garbage-collection hook) stops the run at the end
+  of the chunk instead of being lost."""
+  if threading.current_thread() is not threading.main_thread():
+    yield
+    return
+
+  def handler(signum, frame):
+    _INTERRUPTED.set()
+    raise KeyboardInterrupt
+
+  _INTERRUPTED.clear()
+  previous = signal.signal(signal.SIGINT, handler)
+  try:
+    yield
+  finally:
+    signal.signal(signal.SIGINT, previous)
 
 
 def _describe(e: BaseException) -> str:

@@ -284,3 +284,23 @@ def test_a_failing_first_chunk_says_there_is_no_checkpoint(tmp_path, monkeypatch
   monkeypatch.setattr(io, "first_non_finite", lambda states, metrics: (0, "low"))
   code, err, _ = _main(capsys, TINY_RUN + ["--method", "ours", "--out", str(tmp_path / "r")])
   assert code == 1 and len(err) == 1 and "no checkpoint was saved before it" in err[0], err
+
+
+def test_a_swallowed_ctrl_c_still_stops_the_run_after_the_chunk(tmp_path, monkeypatch, capsys):
+  check, calls = io.first_non_finite, []
+
+  def swallowing(states, metrics):  # Ctrl-C inside a callback that ignores exceptions
+    calls.append(1)
+    if len(calls) == 2:
+      try:
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(1)
+      except KeyboardInterrupt:
+        pass
+    return check(states, metrics)
+
+  monkeypatch.setattr(io, "first_non_finite", swallowing)
+  out = str(tmp_path / "run")
+  code, err, _ = _main(capsys, TINY_RUN + ["--method", "ours", "--out", out])
+  assert code == 1 and len(err) == 1 and err[0].startswith("error: interrupted"), err
+  assert len(calls) == 2 and "ours step 400" in err[0]
