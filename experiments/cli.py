@@ -226,6 +226,7 @@ def plan_from_args(task: str, args: argparse.Namespace) -> Plan:
     changes["checkpoint_every"] = max(changes["chunk"], spec.checkpoint_every // changes["chunk"]
                                       * changes["chunk"])
   spec = dataclasses.replace(spec, **changes)
+  configs = {m: _sized_for_run(c, spec, overrides) for m, c in configs.items()}
   check_plan(task, spec, configs)
   stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
   out = args.out if args.out is not None else os.path.join("runs", f"{task.lower()}-{stamp}")
@@ -234,6 +235,12 @@ def plan_from_args(task: str, args: argparse.Namespace) -> Plan:
   return Plan(task=task, preset=args.preset, seed=args.seed, out=out, spec=spec,
               configs=configs, overrides=overrides,
               widen={"envs_per_seed": envs_per_seed, "grad_steps": grad_steps})
+
+
+def _sized_for_run(config, spec: methods.RunSpec, overrides: dict):
+  """Replay buffers that hold the whole run (``spec.steps``), as the paper's never evict;
+  a buffer size given as an override wins (a smaller one is a ring)."""
+  return apply_overrides(methods.size_buffers(config, spec.steps), overrides)
 
 
 def _explained(fn, flat: dict, *args):
@@ -312,7 +319,7 @@ def plan_from_json(payload, out: str, task: str | None = None) -> Plan:
                               **payload.get("widen", {}))
     plan = plan_from_args(payload["task"], args)
     plan.spec = methods.RunSpec(**payload["run"])
-    plan.configs = {m: apply_overrides(c, _lists_to_tuples(payload["overrides"]))
+    plan.configs = {m: _sized_for_run(c, plan.spec, _lists_to_tuples(payload["overrides"]))
                     for m, c in plan.configs.items()}
     plan.overrides = payload["overrides"]
     check_plan(plan.task, plan.spec, plan.configs)

@@ -46,7 +46,9 @@ def rollout(run_dir: str, method: str | None = None, seed: int = 0, key: int = 0
     step, states = ckpts.restore_newest(like, move_aside=False)
   finally:
     ckpts.close()
-  pick = lambda tree: jax.tree.map(lambda x: x[seed], tree)
+  # The policies S_E evaluates: the target actors by default, as the paper's code.
+  pick = lambda tree: evaluate.acting_params(jax.tree.map(lambda x: x[seed], tree),
+                                             config.eval_target_networks)
   low_params, middle_params = pick(states.low.params), pick(states.middle.params)
   agent = trainer.agent
   run_episode = evaluate.make_episode(env, config.c, agent.low.td3.act, agent.middle.td3.act)

@@ -63,8 +63,10 @@ def test_run_folder_holds_config_metrics_and_checkpoints(reference):
 def test_resume_after_a_stop_gives_the_same_metrics(reference, tmp_path):
   out = str(tmp_path / "run")
   # Stop ours after 2 of its 4 chunks: keep only what a run killed then would have left.
+  # Its replay buffers are those of the 800-step run (the presets size them for the run).
   assert cli.main("PointMaze", TINY + ["--method", "ours", "ref-ppo", "--out", out,
-                                       "--steps", "400"]) == 0
+                                       "--steps", "400", "--low.buffer_size", "800",
+                                       "--middle.buffer_size", "80"]) == 0
   # A run stopped at step 400 is a run configured for 800 that has reached 400.
   cfg = json.load(open(os.path.join(out, "config.json")))
   cfg["run"]["steps"] = 800

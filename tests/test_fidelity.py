@@ -157,3 +157,19 @@ def test_table_counts_modes_in_middle_decisions():
   assert "60 (600) / 15 (150) / 5 (50)" in table and "decisions" in table
   old = plot.markdown_table(plot.summary([row(0), row(1)]))
   assert "700 / 200 / 100 env steps" in old
+
+
+def test_run_buffers_hold_the_whole_run_unless_a_size_is_given():
+  """--steps resizes both replay buffers to the run (nothing evicted); an explicit
+  --low.buffer_size wins and makes a ring."""
+  from experiments import cli
+  parser = cli.make_parser("PointMaze")
+  plan = cli.plan_from_args("PointMaze", parser.parse_args(
+      ["--preset", "quick", "--method", "ours", "--steps", "1200", "--chunk", "400"]))
+  config = plan.configs["ours"]
+  assert (config.low.buffer_size, config.middle.buffer_size) == (1200, 120)
+  plan = cli.plan_from_args("PointMaze", parser.parse_args(
+      ["--preset", "quick", "--method", "ours", "--steps", "1200", "--chunk", "400",
+       "--low.buffer_size", "500"]))
+  assert (plan.configs["ours"].low.buffer_size, plan.configs["ours"].middle.buffer_size) == (
+      500, 120)
