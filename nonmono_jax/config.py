@@ -29,7 +29,8 @@ def _check_triple(name, values, lo=None, hi=None):
                      f"(one per mode {', '.join(hierarchy.MODES)}), got {values}")
   for v in values:
     if (lo is not None and v < lo) or (hi is not None and v > hi):
-      raise ValueError(f"{name} entries must be in [{lo}, {hi}], got {values}")
+      bound = (f">= {lo}" if hi is None else f"<= {hi}" if lo is None else f"in [{lo}, {hi}]")
+      raise ValueError(f"{name} entries must be {bound}, got {values}")
 
 
 def _check_multiple(name, value, of_name, of):
