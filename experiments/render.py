@@ -130,12 +130,20 @@ def main(argv=None) -> int:
   p.add_argument("--out", default=None, help="GIF path (default: DIR/<method>_seed<N>.gif)")
   p.add_argument("--max-frames", type=int, default=150)
   args = p.parse_args(argv)
+  if args.out is not None:
+    if os.path.isdir(args.out) or not args.out.lower().endswith(".gif"):
+      p.exit(2, f"{p.prog}: error: cannot write {args.out}: --out must be a .gif file path\n")
+    if not os.path.isdir(os.path.dirname(os.path.abspath(args.out))):
+      p.exit(2, f"{p.prog}: error: cannot write {args.out}: its folder does not exist\n")
   try:
     roll = rollout(args.dir, args.method, args.seed, args.key)
   except (ValueError, OSError, io.CheckpointError) as e:
     p.exit(2, f"{p.prog}: error: {e}\n")
   out = args.out or os.path.join(args.dir, f"{roll['method']}_seed{args.seed}.gif")
-  n = draw(roll, out, args.max_frames)
+  try:
+    n = draw(roll, out, args.max_frames)
+  except OSError as e:
+    p.exit(2, f"{p.prog}: error: cannot write {out}: {e.strerror or e}\n")
   print(f"{out}: {n} frames, target reached: {bool(roll['success'].max())}")
   return 0
 

@@ -206,6 +206,16 @@ def test_a_malformed_config_json_is_one_line(reference, tmp_path, capsys, edit, 
   assert e.value.code == 2
 
 
+def test_render_to_an_unwritable_path_is_one_line(reference, tmp_path, capsys):
+  from experiments import render
+
+  for out in (tmp_path / "no" / "such" / "a.gif", tmp_path):  # no folder; a folder, not a file
+    with pytest.raises(SystemExit) as e:
+      render.main([reference, "--out", str(out)])
+    err = [l for l in capsys.readouterr().err.splitlines() if l.strip()]
+    assert e.value.code == 2 and len(err) == 1 and "cannot write" in err[0], err
+
+
 def test_a_broken_metrics_file_or_a_missing_one_is_one_line(reference, tmp_path, capsys):
   out = _copy(reference, tmp_path)
   path = os.path.join(out, "metrics.csv")
