@@ -258,26 +258,20 @@ def make_agent(env, config: AgentConfig = AgentConfig()) -> Agent:
       if has_ppo:
         slot = (t // c) % config.middle_rollout_length
         state = state.replace(middle_rollout=_write_slot(state.middle_rollout, slot, steps))
-      m = {"switches": jp.zeros(())}
-      if has_top:
+      m = {}
+      if has_top:  # within a segment's end, the horizon flag is horizon_end
         state, hm = _gated(horizon_end, end_horizon, state)
-        m.update(hm)
+        m.update(_prefixed("horizon", hm, horizon_end))
       if informed:
         state, switched = informed_switch(state, items)
-        m["switches"] = switched.sum().astype(jp.float32)
+        m["switch/switches"] = switched.sum().astype(jp.float32)
       state, decided = count(state, t + 1 >= config.warmup_steps, t + 1 >= live_from,
                              "mode_decisions", "mode_decisions_after_start")
       m.update({f"decisions/{name}": decided[j] for j, name in enumerate(hierarchy.MODES)})
       return new_segments(state, state.env.obs, kg, t + 1 < config.warmup_steps, t), m
 
-    state, segment_m = _gated(segment_end, end_segment, state)
-    metrics.update({k: v for k, v in segment_m.items() if k.startswith("decisions/")})
-    if informed:
-      metrics["switch/switches"] = segment_m["switches"]
-    if has_top:
-      metrics.update(_prefixed("horizon", {k: v for k, v in segment_m.items()
-                                           if not k.startswith("decisions/")
-                                           and k != "switches"}, segment_end & horizon_end))
+    state, segment_m = _gated(segment_end, end_segment, state)  # zeros where skipped
+    metrics.update(segment_m)
     state, update_m = _updates(state, t, live, segment_end, kl, km, kp, kev)
     metrics.update(update_m)
     return state, metrics

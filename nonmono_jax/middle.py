@@ -121,10 +121,9 @@ def make_middle(obs_size: int, action_size: int, target, config: AgentConfig,
     policy = lambda obs, g: low_act(low_params.replace(actor=low_params.target_actor), obs, g)
     return relabel.relabel(key, policy, seg.obs, seg.actions, seg.goal, goal_range)[0]
 
-  def close(seg: Segment, episode_end, low_params, key):
-    """The segment's Middle TD3 buffer item and Middle PPO rollout step."""
+  def pack(seg: Segment, g, episode_end):
+    """The Middle TD3 buffer item (goal ``g``) and the Middle PPO rollout step of a segment."""
     reward = hierarchy.middle_reward(seg.rewards)
-    g = relabelled(seg, low_params, key) if at_store else seg.goal
     tr = td3.Transition(obs=seg.obs[0], context=target, action=g, reward=reward,
                         next_obs=seg.obs[c], next_context=target, done=seg.success)
     item = {"transition": tr} if at_store else {"transition": tr, "states": seg.obs,
@@ -134,22 +133,20 @@ def make_middle(obs_size: int, action_size: int, target, config: AgentConfig,
                        done=jp.maximum(seg.success, jp.asarray(episode_end, jp.float32)))
     return item, step
 
-  def init_buffer():
-    item, _ = _example_close()
-    return buffers.init(item, config.middle.buffer_size)
+  def close(seg: Segment, episode_end, low_params, key):
+    """The segment's buffer item, its goal relabelled at store (``"store"``), and PPO step."""
+    g = relabelled(seg, low_params, key) if at_store else seg.goal
+    return pack(seg, g, episode_end)
 
   def _example_close():
     """Zero-filled (buffer item, rollout step) of ``close``'s shapes."""
-    reward = jp.zeros(())
-    tr = td3.Transition(obs=jp.zeros(obs_size), context=target, action=jp.zeros(k),
-                        reward=reward, next_obs=jp.zeros(obs_size), next_context=target,
-                        done=reward)
-    item = {"transition": tr} if at_store else {"transition": tr,
-                                                "states": jp.zeros((c + 1, obs_size)),
-                                                "actions": jp.zeros((c, action_size))}
-    step = ppo.Rollout(obs=jp.zeros(obs_size + k), action=jp.zeros(k), log_prob=reward,
-                       reward=reward, done=reward)
-    return item, step
+    zero_goal = jp.zeros(k)
+    return pack(new_segment(jp.zeros(obs_size), zero_goal, zero_goal, jp.zeros(())), zero_goal,
+                False)
+
+  def init_buffer():
+    item, _ = _example_close()
+    return buffers.init(item, config.middle.buffer_size)
 
   def init_rollout():
     _, step = _example_close()
