@@ -8,11 +8,17 @@ Per task found in the folders' ``metrics.csv`` files:
 - ``<task>_modes``: for every method, the cumulative Middle decisions made in each mode (TD3 =
   exploitation, PPO and RANDOM = exploration; one decision per c = 10 env steps, the unit of
   the paper's mode counts) against env steps (runs from before these columns: env steps);
-- ``<task>_ablation``: S_E of ours and its ablations, where the folders hold any of them.
+- ``<task>_iqm``: S_E against env steps as the interquartile mean (IQM) over seeds with
+  pointwise 95 % stratified-bootstrap intervals, final S_E as IQM with its interval per
+  method, and the probability of improvement P(ours > method) on final S_E with its interval
+  (``experiments.stats``, rliable's estimators);
+- ``<task>_ablation``: S_E of ours and its ablations (IQM with 95 % intervals), where the
+  folders hold any of them.
 
-Each is written as PNG and PDF into ``--out`` (default: ``DIR/figures`` of the first folder);
-``--table`` also prints final and best S_E (mean +- std over seeds) and the Middle decisions
-per mode after the starting mode (the paper's unit; env steps in brackets).
+Each is written as PNG and PDF into ``--out`` (default: ``DIR/figures`` of the first folder),
+with ``summary.md``: per task and method, final and best S_E per seed as IQM [95 % CI],
+P(ours > method) [95 % CI] and the Middle decisions per mode after the starting mode (the
+paper's unit; env steps in brackets). ``--table`` also prints that table.
 """
 
 from __future__ import annotations
@@ -25,12 +31,22 @@ from collections import defaultdict
 
 import numpy as np
 
+from experiments import stats
+
 MODES = ("TD3", "PPO", "RANDOM")
 LABELS = {"ours": "Ours", "hiro": "HIRO", "ref-uniform": "Ref:Uniform", "ref-ppo": "Ref:PPO",
           "ours-no-reward-mod": "Ours w/o reward mod.", "ours-no-loss-mod": "Ours w/o loss mod.",
           "ours-no-mods": "Ours w/o both"}
 ABLATIONS = ("ours", "ours-no-reward-mod", "ours-no-loss-mod", "ours-no-mods")
 MODE_COLORS = {"TD3": "tab:blue", "PPO": "tab:orange", "RANDOM": "tab:green"}
+SUMMARY_NOTE = (
+    "Final S_E (at the last evaluation) and best S_E (the maximum over evaluations) per seed, "
+    "as the interquartile mean over seeds with a 95% stratified-bootstrap percentile interval "
+    "({reps} replicates); P(ours > method): the probability that a seed of ours ends with a "
+    "higher final S_E than a seed of the method (ties count 1/2), with its interval "
+    "(`experiments/stats.py`). Mode counts: Middle decisions (the paper's unit) after the "
+    "starting mode per seed at the last row, IQM over seeds [95% CI] (the IQM of the env steps "
+    "in brackets).\n\n")
 
 
 REQUIRED = ("task", "method", "seed", "env_step", "eval_success", "eval_return",
@@ -83,73 +99,91 @@ def _row_ok(header, values) -> bool:
   return True
 
 
-def curves(rows, task, method, column):
-  """(steps, mean, std) over seeds of ``column``; steps where every seed has a value."""
+def per_seed(rows, task, method, column):
+  """(steps, values): ``column`` of each seed (a row of ``values``) at each step where every
+  seed has a value (a column)."""
   by_step = defaultdict(dict)
   for r in rows:
     if r["task"] == task and r["method"] == method and r.get(column, "") != "":
       by_step[int(r["env_step"])][r["seed"]] = float(r[column])
   n_seeds = max((len(v) for v in by_step.values()), default=0)
   steps = sorted(s for s, v in by_step.items() if len(v) == n_seeds)
-  values = np.array([[by_step[s][k] for k in sorted(by_step[s])] for s in steps])
-  if not steps:
+  seeds = sorted(by_step[steps[0]]) if steps else []
+  values = np.array([[by_step[s][k] for s in steps] for k in seeds], dtype=float)
+  return np.array(steps, dtype=int), values.reshape(len(seeds), len(steps))
+
+
+def curves(rows, task, method, column):
+  """(steps, mean, std, seeds) over seeds of ``column``; steps where every seed has a value."""
+  steps, values = per_seed(rows, task, method, column)
+  if not len(steps):
     return np.zeros(0), np.zeros(0), np.zeros(0), 0
-  return np.array(steps), values.mean(1), values.std(1), n_seeds
+  return steps, values.mean(0), values.std(0), len(values)
 
 
-def _last(rows, task, method, column):
-  """The mean over seeds of ``column`` at the last logged step (None: a run without it)."""
-  if not any(column in r and r[column] != "" for r in rows):
-    return None
-  _, mean, _, n = curves(rows, task, method, column)
-  return float(mean[-1]) if n else None
+def _at_end(rows, task, method, column, reps):
+  """(IQM, lower, upper) over seeds of ``column`` at the last step where every seed has a
+  value (None: a run without it)."""
+  steps, values = per_seed(rows, task, method, column)
+  return stats.interval(stats.iqm, values[:, -1], reps=reps) if len(steps) else None
 
 
-def summary(rows) -> list[dict]:
-  """Per task and method: final and best mean S_E (with the std across seeds), the mean
-  cumulative env steps per mode at the last logged step, and per mode the mean Middle
-  decisions and env steps after the starting mode (None for runs without those columns)."""
+def summary(rows, reps: int = stats.REPS) -> list[dict]:
+  """Per task and method: the final S_E (at the last evaluation) and best S_E (the maximum over
+  evaluations) of every seed as (IQM, lower, upper), a 95 % stratified-bootstrap interval;
+  ``p_ours``: P(ours > method) on final S_E, with its interval (None for ours or without it);
+  per mode, the same IQM and interval at the last row of the cumulative env steps, and of the
+  Middle decisions and env steps after the starting mode (None for runs without them)."""
   out = []
   for task in sorted({r["task"] for r in rows}):
+    finals = {}
     for m in LABELS:
-      steps, mean, std, n = curves(rows, task, m, "eval_success")
-      if not n:
+      steps, values = per_seed(rows, task, m, "eval_success")
+      if not len(steps):
         continue
-      best = int(np.argmax(mean))
-      modes = {mode: curves(rows, task, m, f"cum_steps_{mode}")[1] for mode in MODES}
-      after = {mode: _last(rows, task, m, f"cum_decisions_after_start_{mode}")
-               for mode in MODES}
-      after_steps = {mode: _last(rows, task, m, f"cum_steps_after_start_{mode}")
-                     for mode in MODES}
-      out.append({"task": task, "method": m, "seeds": n, "env_steps": int(steps[-1]),
-                  "final_s_e": float(mean[-1]), "final_s_e_std": float(std[-1]),
-                  "best_s_e": float(mean[best]), "best_s_e_std": float(std[best]),
-                  "best_at": int(steps[best]),
-                  **{f"steps_{mode}": float(v[-1]) if len(v) else 0.0
-                     for mode, v in modes.items()},
-                  **{f"decisions_after_start_{mode}": v for mode, v in after.items()},
-                  **{f"steps_after_start_{mode}": v for mode, v in after_steps.items()}})
+      finals[m] = values[:, -1]
+      counts = {f"{name}_{mode}": _at_end(rows, task, m, f"cum_{name}_{mode}", reps)
+                for name in ("steps", "decisions_after_start", "steps_after_start")
+                for mode in MODES}
+      out.append({"task": task, "method": m, "seeds": len(values), "env_steps": int(steps[-1]),
+                  "final_s_e": stats.interval(stats.iqm, values[:, -1], reps=reps),
+                  "best_s_e": stats.interval(stats.iqm, values.max(1), reps=reps),
+                  "p_ours": None, **counts})
+    for r in out:
+      if r["task"] == task and r["method"] != "ours" and "ours" in finals:
+        r["p_ours"] = stats.interval(stats.probability_of_improvement, finals["ours"],
+                                     finals[r["method"]], reps=reps)
   return out
 
 
-def _modes_cell(r) -> str:
-  """Per-seed mean Middle decisions per mode after the starting mode (env steps in brackets);
-  runs from before the decision columns show env steps after warm-up."""
-  if r.get("decisions_after_start_TD3") is None:
-    return " / ".join(f"{r[f'steps_{m}']:.0f}" for m in MODES) + " env steps"
-  return " / ".join(f"{r[f'decisions_after_start_{m}']:.0f} ({r[f'steps_after_start_{m}']:.0f})"
-                    for m in MODES)
+def _interval_cell(estimate, digits=2) -> str:
+  """``point [lower, upper]``; n/a for no estimate."""
+  if estimate is None:
+    return "n/a"
+  point, lower, upper = (f"{float(x):.{digits}f}" for x in estimate)
+  return f"{point} [{lower}, {upper}]"
+
+
+def _mode_cells(r) -> list[str]:
+  """Per mode: Middle decisions after the starting mode, IQM [95% CI] over seeds (the IQM of
+  the env steps in brackets); runs from before the decision columns: env steps in all."""
+  if r["decisions_after_start_TD3"] is None:
+    return [_interval_cell(r[f"steps_{m}"], 0) + " env steps" for m in MODES]
+  return [f"{_interval_cell(r[f'decisions_after_start_{m}'], 0)} "
+          f"({float(r[f'steps_after_start_{m}'][0]):.0f})" for m in MODES]
 
 
 def markdown_table(summary_rows) -> str:
-  lines = ["| task | method | seeds | env steps | final S_E | best S_E (at) | TD3 / PPO / RANDOM "
-           "Middle decisions after the starting mode, per seed (env steps) |",
-           "|---|---|---|---|---|---|---|"]
+  lines = ["| task | method | runs | env steps | final S_E, IQM [95% CI] | best S_E, IQM "
+           "[95% CI] | P(ours > method), final S_E [95% CI] | "
+           + " | ".join(f"{m} decisions after the starting mode, IQM [95% CI] (env steps)"
+                        for m in MODES) + " |",
+           "|---|---|---|---|---|---|---|---|---|---|"]
   for r in summary_rows:
     lines.append(
         f"| {r['task']} | {LABELS[r['method']]} | {r['seeds']} | {r['env_steps']} | "
-        f"{r['final_s_e']:.2f} +- {r['final_s_e_std']:.2f} | {r['best_s_e']:.2f} +- "
-        f"{r['best_s_e_std']:.2f} ({r['best_at']}) | {_modes_cell(r)} |")
+        f"{_interval_cell(r['final_s_e'])} | {_interval_cell(r['best_s_e'])} | "
+        f"{_interval_cell(r['p_ours'])} | {' | '.join(_mode_cells(r))} |")
   return "\n".join(lines)
 
 
@@ -168,12 +202,78 @@ def _finish(fig, out, name):
   return paths
 
 
+def iqm_curves(rows, task, methods) -> dict:
+  """Per method with an evaluation: (steps, IQM, lower, upper, seeds) of S_E over seeds, with
+  pointwise 95 % stratified-bootstrap intervals."""
+  out = {}
+  for m in methods:
+    steps, values = per_seed(rows, task, m, "eval_success")
+    if len(steps):
+      out[m] = (steps, *stats.iqm_curve(values), len(values))
+  return out
+
+
+def _iqm_band(ax, curve, label, color=None):
+  steps, point, lower, upper, n = curve
+  line, = ax.plot(steps, point, label=f"{label} ({n} seeds)", color=color, lw=1.6)
+  ax.fill_between(steps, lower, upper, color=line.get_color(), alpha=0.2, lw=0)
+
+
+def _intervals(ax, labels, estimates, colors):
+  """rliable's interval-estimate plot: one horizontal 95 % interval and point per label."""
+  for i, ((point, lower, upper), color) in enumerate(zip(estimates, colors)):
+    ax.plot([lower, upper], [i, i], color=color, lw=6, alpha=0.5, solid_capstyle="butt")
+    ax.plot([point], [i], "k|", ms=14)
+  ax.set_yticks(range(len(labels)), labels)
+  ax.invert_yaxis()
+  ax.grid(alpha=0.3, axis="x")
+
+
+def _iqm_figure(plt, task, curves_, table, out) -> list[str]:
+  """IQM of S_E against env steps, final S_E as IQM with its interval and P(ours > method)."""
+  baselines = [r for r in table if r["p_ours"] is not None]
+  colors = {m: f"C{i}" for i, m in enumerate(curves_)}
+  fig, axes = plt.subplots(1, 3 if baselines else 2, figsize=(15 if baselines else 10.5, 4))
+  for m, curve in curves_.items():
+    _iqm_band(axes[0], curve, LABELS[m], colors[m])
+  axes[0].set(title=f"{task}: S_E, IQM over seeds (95% CI)", xlabel="env steps",
+              ylabel="S_E", ylim=(-0.05, 1.05))
+  axes[0].legend(fontsize=8)
+  axes[0].grid(alpha=0.3)
+  _intervals(axes[1], [LABELS[r["method"]] for r in table], [r["final_s_e"] for r in table],
+             [colors[r["method"]] for r in table])
+  axes[1].set(title="final S_E: IQM (95% CI)", xlim=(-0.05, 1.05))
+  if baselines:
+    _intervals(axes[2], [f"Ours > {LABELS[r['method']]}" for r in baselines],
+               [r["p_ours"] for r in baselines], [colors[r["method"]] for r in baselines])
+    axes[2].axvline(0.5, color="gray", ls="--", lw=1)
+    axes[2].set(title="P(ours > method), final S_E (95% CI)", xlim=(-0.05, 1.05))
+  paths = _finish(fig, out, f"{task.lower()}_iqm")
+  plt.close(fig)
+  return paths
+
+
+def _ablation_figure(plt, task, curves_, out) -> list[str]:
+  """S_E of ours and its ablations: IQM over seeds with pointwise 95 % intervals."""
+  fig, ax = plt.subplots(figsize=(5.5, 4))
+  for m, curve in curves_.items():
+    _iqm_band(ax, curve, LABELS[m])
+  ax.set(title=f"{task}: ablations", xlabel="env steps", ylabel="S_E, IQM over seeds (95% CI)",
+         ylim=(-0.05, 1.05))
+  ax.legend(fontsize=8)
+  ax.grid(alpha=0.3)
+  paths = _finish(fig, out, f"{task.lower()}_ablation")
+  plt.close(fig)
+  return paths
+
+
 def plot(dirs, out=None) -> list[str]:
   import matplotlib
   matplotlib.use("Agg")
   import matplotlib.pyplot as plt
 
   rows = load(dirs)
+  table = summary(rows)
   out = out or os.path.join(dirs[0], "figures")
   os.makedirs(out, exist_ok=True)
   written = []
@@ -212,17 +312,15 @@ def plot(dirs, out=None) -> list[str]:
     written += _finish(fig, out, f"{task.lower()}_modes")
     plt.close(fig)
 
-    ablations = [m for m in ABLATIONS if m in present]
+    iqm = iqm_curves(rows, task, present)
+    written += _iqm_figure(plt, task, iqm, [r for r in table if r["task"] == task], out)
+    ablations = [m for m in ABLATIONS if m in iqm]
     if len(ablations) > 1:
-      fig, ax = plt.subplots(figsize=(5.5, 4))
-      for m in ablations:
-        steps, mean, std, n = curves(rows, task, m, "eval_success")
-        _band(ax, steps, mean, std, f"{LABELS[m]} ({n} seeds)")
-      ax.set(title=f"{task}: ablations", xlabel="env steps", ylabel="S_E", ylim=(-0.05, 1.05))
-      ax.legend(fontsize=8)
-      ax.grid(alpha=0.3)
-      written += _finish(fig, out, f"{task.lower()}_ablation")
-      plt.close(fig)
+      written += _ablation_figure(plt, task, {m: iqm[m] for m in ablations}, out)
+  path = os.path.join(out, "summary.md")
+  with open(path, "w") as f:
+    f.write(SUMMARY_NOTE.format(reps=stats.REPS) + markdown_table(table) + "\n")
+  written.append(path)
   return written
 
 

@@ -154,9 +154,11 @@ def test_table_counts_modes_in_middle_decisions():
   new = {f"cum_decisions_after_start_{m}": v for m, v in zip(plot.MODES, ("60", "15", "5"))}
   new.update({f"cum_steps_after_start_{m}": v for m, v in zip(plot.MODES, ("600", "150", "50"))})
   table = plot.markdown_table(plot.summary([row(0, **new), row(1, **new)]))
-  assert "60 (600) / 15 (150) / 5 (50)" in table and "decisions" in table
+  assert "| 60 [60, 60] (600) | 15 [15, 15] (150) | 5 [5, 5] (50) |" in table
+  assert "TD3 decisions after the starting mode" in table
   old = plot.markdown_table(plot.summary([row(0), row(1)]))
-  assert "700 / 200 / 100 env steps" in old
+  assert ("| 700 [700, 700] env steps | 200 [200, 200] env steps | 100 [100, 100] env steps |"
+          in old)
 
 
 def test_run_buffers_hold_the_whole_run_unless_a_size_is_given():

@@ -1,0 +1,99 @@
+"""experiments.plot's statistics: the table (IQM [CI], P(ours > method), mode counts) and the
+IQM and ablation figures, from tiny synthetic metrics.csv files (no training)."""
+
+import csv
+import os
+
+import numpy as np
+import pytest
+
+from experiments import plot
+
+COLUMNS = (*plot.REQUIRED, *(f"cum_{kind}_after_start_{m}" for kind in ("decisions", "steps")
+                              for m in plot.MODES))
+STEPS = (100, 200, 300, 400)
+# S_E per seed at each evaluation; the first row of each seed comes before any evaluation.
+S_E = {
+    "ours": [(0.0, 0.2, 1.0), (0.0, 1.0, 1.0), (0.2, 0.6, 1.0), (0.0, 1.0, 0.8), (0.1, 0.3, 0.9)],
+    "hiro": [(0.0, 0.0, 0.0), (0.0, 0.1, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.4, 1.0, 1.0)],
+    "ours-no-mods": [(0.0, 0.0, 0.5), (0.0, 0.5, 0.5), (0.0, 0.0, 0.0)],
+}
+
+
+def _write(folder, methods):
+  os.makedirs(folder)
+  with open(os.path.join(folder, "metrics.csv"), "w", newline="") as f:
+    w = csv.DictWriter(f, COLUMNS, lineterminator="\n")
+    w.writeheader()
+    for m in methods:
+      for seed, s_e in enumerate(S_E[m]):
+        for i, step in enumerate(STEPS):
+          evaluated = i > 0
+          w.writerow({
+              "task": "PointMaze", "method": m, "seed": seed, "env_step": step,
+              "eval_success": s_e[i - 1] if evaluated else "",
+              "eval_return": -10 * (1 - s_e[i - 1]) if evaluated else "",
+              **{f"cum_steps_{mode}": step * k for mode, k in zip(plot.MODES, (6, 3, 1))},
+              **{f"cum_decisions_after_start_{mode}": step * k // 100 + seed
+                 for mode, k in zip(plot.MODES, (6, 3, 1))},
+              **{f"cum_steps_after_start_{mode}": step * k // 10 + 10 * seed
+                 for mode, k in zip(plot.MODES, (6, 3, 1))}})
+  return str(folder)
+
+
+@pytest.fixture
+def runs(tmp_path):
+  return [_write(tmp_path / "main", ["ours", "hiro"]), _write(tmp_path / "abl", ["ours-no-mods"])]
+
+
+def test_summary_gives_iqm_intervals_and_probability_of_improvement(runs):
+  table = {r["method"]: r for r in plot.summary(plot.load(runs))}
+  ours, hiro, ablation = table["ours"], table["hiro"], table["ours-no-mods"]
+  assert (ours["seeds"], ours["env_steps"], ablation["seeds"]) == (5, 400, 3)
+  # final S_E of ours: 1, 1, 1, 0.8, 0.9; 5 runs cut 1 at each end: mean(0.9, 1, 1) = 0.967.
+  assert ours["final_s_e"][0] == pytest.approx(0.9667, abs=1e-4)
+  # best S_E of ours: 1, 1, 1, 1, 0.9 -> mean(1, 1, 1) = 1; of hiro: 0, 0.1, 0, 0, 1 -> 0.033.
+  assert ours["best_s_e"][0] == 1.0 and hiro["best_s_e"][0] == pytest.approx(0.1 / 3)
+  lower, upper = ours["final_s_e"][1:]
+  assert 0.8 <= lower < 0.9667 < upper <= 1.0
+  # P(ours > hiro) on final S_E: hiro's four zeros lose to all 5 of ours (20 pairs); hiro's 1
+  # ties three of ours (1.5) and beats 0.8 and 0.9: 21.5 / 25 = 0.86.
+  assert hiro["p_ours"][0] == pytest.approx(0.86)
+  assert ours["p_ours"] is None
+  # ours-no-mods ends at 0.5, 0.5, 0: every pair with ours is won by ours.
+  assert ablation["p_ours"] == (1.0, 1.0, 1.0)
+
+
+def test_table_summary_file_and_figures(runs, tmp_path, capsys):
+  """One drawing (matplotlib is the slow part): the printed table, summary.md and the files."""
+  out = tmp_path / "fig"
+  assert plot.main([*runs, "--out", str(out), "--table"]) == 0
+  printed = capsys.readouterr().out
+  line = next(l for l in printed.splitlines() if l.startswith("| PointMaze | HIRO |"))
+  cells = [c.strip() for c in line.strip("|").split("|")]
+  assert cells[2:4] == ["5", "400"]
+  assert cells[6].startswith("0.86 [")
+  # mode counts after the starting mode at the last row: TD3 24 + seed decisions for seeds
+  # 0-4 (240 + 10 seed env steps), IQM mean(25, 26, 27) = 26 (260), the interval within
+  # [24, 28]; PPO 12 + seed, IQM 14 (140); RANDOM 4 + seed, IQM 6 (60).
+  low, high = (int(x) for x in cells[7].split("[")[1].split("]")[0].split(", "))
+  assert cells[7].startswith("26 [") and cells[7].endswith("] (260)") and 24 <= low < high <= 28
+  assert cells[8].startswith("14 [") and cells[9].endswith("] (60)")
+  assert "| PointMaze | Ours | 5 | 400 | 0.97 [" in printed and "| n/a |" in printed
+  summary = (out / "summary.md").read_text()
+  assert "stratified-bootstrap" in summary and line in summary
+  names = sorted(os.listdir(out))
+  assert names == sorted(f"pointmaze_{kind}.{ext}" for kind in
+                         ("success", "modes", "iqm", "ablation") for ext in ("png", "pdf")) + [
+                             "summary.md"]
+  assert all(str(out / n) in printed for n in names)
+  assert all(os.path.getsize(out / n) > 5000 for n in names if n != "summary.md")
+
+
+def test_iqm_curve_of_a_method(runs):
+  steps, point, lower, upper, n = plot.iqm_curves(plot.load(runs), "PointMaze", ["ours"])["ours"]
+  # ours at step 200 (the first evaluation): 0, 0, 0.2, 0, 0.1 -> mean(0, 0, 0.1) = 0.033;
+  # at 300: 0.2, 1, 0.6, 1, 0.3 -> mean(0.3, 0.6, 1) = 0.633; at 400: 0.967 (above).
+  assert list(steps) == [200, 300, 400] and n == 5
+  np.testing.assert_allclose(point, [0.1 / 3, 1.9 / 3, 2.9 / 3])
+  assert (lower <= point).all() and (point <= upper).all() and (lower < upper).all()
