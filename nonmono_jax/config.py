@@ -8,13 +8,23 @@
 
 A method (``methods.py``) is one of these configurations; every value is checked here, before
 anything compiles, with a message that names the field.
+
+One way to change a configuration: dotted paths (``override``), as presets, methods, the
+command line, tests and benchmarks all do; ``config_from_dict`` inverts ``io.to_jsonable`` so
+that a run is loaded from its ``config.json``:
+
+    config = override(AgentConfig(), {"top.alpha": (0, 0.4, 0.7), "middle.target_smoothing": True})
+    config = config_from_dict(saved, base)      # saved: the JSON of a config; base: missing fields
+    differences(config, other)                  # ["top.alpha", ...]
 """
 
 from __future__ import annotations
 
 import dataclasses
+import typing
+from typing import Any, Mapping
 
-from nonmono_jax import hierarchy, homeostasis, ppo, td3
+from nonmono_jax import hierarchy, homeostasis, ppo, td3, validation
 
 SWITCHES = ("none", "top", "homeostasis")  # HIRO / ours / Ref:Uniform and Ref:PPO
 EXPLORE_MODES = ("ppo", "random")  # the explore mode of the homeostasis switch
@@ -154,3 +164,116 @@ class AgentConfig:
     if env.episode_length % horizon:
       raise ValueError(f"episode_length ({env.episode_length}) must be a multiple of {name} "
                        f"({horizon}): horizons end with episodes")
+
+
+# --- one way to override: dotted paths --------------------------------------------------------
+
+def merge(*layers: Mapping[str, Any]) -> dict:
+  """Dotted override dicts, later layers winning; a later whole value (``"low": cfg``) also
+  drops the earlier paths under it (``"low.hidden"``), which it replaces."""
+  out: dict = {}
+  for layer in layers:
+    for path, value in layer.items():
+      for old in [k for k in out if k.startswith(path + ".")]:
+        del out[old]
+      out[path] = value
+  return out
+
+
+def override(config, overrides: Mapping[str, Any], prefix: str = ""):
+  """``config`` with the dotted paths replaced: ``{"top.alpha": (0, 0.4, 0.7), "c": 5}``.
+
+  Each dataclass level is replaced once with all its changes, so fields checked together
+  (``c`` and ``top.horizon``) may change together; a whole value (``"low": TD3Config(...)``)
+  is applied before the paths under it. Lists become tuples. Errors are ValueErrors naming the
+  full dotted field (``low.lr_actor must be ...``, ``unknown TopConfig field 'top.x'``).
+  """
+  names = {f.name for f in dataclasses.fields(config)}
+  whole, nested = {}, {}
+  for path, value in flatten(overrides).items():
+    head, _, rest = path.partition(".")
+    if head not in names:
+      raise ValueError(f"unknown {type(config).__name__} field {prefix + path!r}; valid: "
+                       f"{', '.join(sorted(names))}")
+    if rest:
+      nested.setdefault(head, {})[rest] = value
+    else:
+      value = _tuples(value)
+      if not dataclasses.is_dataclass(value):
+        validation.check_value(prefix + head, value)
+      whole[head] = value
+  changes = dict(whole)
+  for head, paths in nested.items():
+    inner = whole.get(head, getattr(config, head))
+    if not dataclasses.is_dataclass(inner):
+      raise ValueError(f"{prefix + head} is not a config with fields "
+                       f"(given {', '.join(prefix + head + '.' + p for p in paths)})")
+    changes[head] = override(inner, paths, prefix + head + ".")
+  return _replace(config, changes, prefix)
+
+
+def _tuples(value):
+  return tuple(_tuples(v) for v in value) if isinstance(value, (list, tuple)) else value
+
+
+def _replace(config, changes: dict, prefix: str):
+  """``dataclasses.replace``; a nested config's own check names its field without the path
+  (``lr_actor must be ...``): re-raised with the full dotted name."""
+  try:
+    return dataclasses.replace(config, **changes)
+  except ValueError as e:
+    msg = str(e)
+    raise ValueError(msg if not prefix or msg.startswith(prefix.split(".")[0] + ".")
+                     else prefix + msg) from None
+  except TypeError as e:  # a value of the wrong kind (a string where a number goes)
+    raise ValueError(f"{prefix}{e}") from None
+
+
+def flatten(nested: Mapping[str, Any], prefix: str = "") -> dict:
+  """``{"top": {"alpha": [...]}}`` (a config's JSON, or old nested overrides) -> dotted paths."""
+  out = {}
+  for name, value in nested.items():
+    if isinstance(value, Mapping):
+      out.update(flatten(value, prefix + name + "."))
+    else:
+      out[prefix + name] = value
+  return out
+
+
+def config_from_dict(data: Mapping[str, Any], base):
+  """The config whose JSON (``io.to_jsonable``) is ``data``: the inverse of that, by the
+  dataclasses' fields. Fields ``data`` lacks (added to the code after it was written) keep
+  ``base``'s values (see ``missing_fields``); an unknown one is a ValueError naming it."""
+  if not isinstance(data, Mapping):
+    raise ValueError(f"expected a JSON object of {type(base).__name__}, got {data!r}")
+  return override(base, flatten(data))
+
+
+def leaf_paths(config, prefix: str = "") -> list[str]:
+  """The dotted path of every leaf field of a config dataclass, by its type hints."""
+  hints = typing.get_type_hints(type(config))
+  out = []
+  for f in dataclasses.fields(config):
+    value = getattr(config, f.name)
+    if dataclasses.is_dataclass(hints.get(f.name)) or dataclasses.is_dataclass(value):
+      out.extend(leaf_paths(value, prefix + f.name + "."))
+    else:
+      out.append(prefix + f.name)
+  return out
+
+
+def missing_fields(data: Mapping[str, Any], config) -> list[str]:
+  """The leaf fields of ``config`` that the JSON ``data`` of one does not hold."""
+  have = set(flatten(data))
+  return [p for p in leaf_paths(config) if p not in have]
+
+
+def get(config, path: str):
+  for part in path.split("."):
+    config = getattr(config, part)
+  return config
+
+
+def differences(a, b) -> list[str]:
+  """The dotted leaf fields in which two configs of one class differ."""
+  return [p for p in leaf_paths(a) if get(a, p) != get(b, p)]

@@ -1,7 +1,9 @@
-"""The paper's methods as configurations of one agent, with presets per task.
+"""The paper's methods as configurations of one agent, with presets per task: tables of dotted
+overrides (``config.override``) applied to ``AgentConfig()``.
 
     config = methods.make_config("ours", "AntPush")        # SPEC's numbers for that task
-    config = methods.make_config("ref-ppo", "PointPush", warmup_steps=5_000)   # + overrides
+    config = methods.make_config("ref-ppo", "PointPush", {"warmup_steps": 5_000,
+                                                          "top.alpha": (0, 0.4, 0.7)})
 
 | method              | switch       | Middle sub-policies        | Top loss / reward mods |
 |---------------------|--------------|----------------------------|------------------------|
@@ -20,19 +22,36 @@ have neither (exploration comes from the modes). The Ref methods' TD3 goals are 
 Task presets: the Ant tasks are SPEC's (alpha, S_O, rho, 1000-step episodes, 3.15M / 6M steps).
 The point tasks are the same methods at a CPU scale: 64-64 networks with faster actors, a
 2K-step warm-up, a 10K-step starting mode, 100-step episodes and evaluation every 2K steps.
+A method's overrides are applied after its task's (``make_config``: task, method, rho, yours).
 """
 
 from __future__ import annotations
 
 import dataclasses
+from typing import Any, Mapping
 
-from nonmono_jax import homeostasis, ppo, td3
-from nonmono_jax.config import AgentConfig, TopConfig
+from nonmono_jax.config import AgentConfig, merge, override
 
 REF_PPO_EVERY = 40  # env steps between Ref:PPO's PPO updates in the paper's code (ours: 30)
-METHODS = ("ours", "hiro", "ref-uniform", "ref-ppo", "ours-no-reward-mod", "ours-no-loss-mod",
-           "ours-no-mods")
 
+# --- methods: what each changes in AgentConfig() ----------------------------------------------
+
+_OURS = {"switch": "top", "middle_goal_noise": 0.0}
+METHOD_OVERRIDES = {
+    "ours": {**_OURS, "top.reward_mod": True, "top.loss_mod": True},
+    "hiro": {"switch": "none", "middle_goal_noise": 1.0, "middle.target_smoothing": True},
+    "ref-uniform": {"switch": "homeostasis", "middle_goal_noise": 0.0, "explore_mode": "random"},
+    # The paper's Ref:PPO: std 0.6 (its decay commented out), PPO every 40 env steps.
+    "ref-ppo": {"switch": "homeostasis", "middle_goal_noise": 0.0, "explore_mode": "ppo",
+                "middle_ppo.std_decay": 0.0, "middle_ppo_every": REF_PPO_EVERY},
+    "ours-no-reward-mod": {**_OURS, "top.reward_mod": False, "top.loss_mod": True},
+    "ours-no-loss-mod": {**_OURS, "top.reward_mod": True, "top.loss_mod": False},
+    "ours-no-mods": {**_OURS, "top.reward_mod": False, "top.loss_mod": False},
+}
+METHODS = tuple(METHOD_OVERRIDES)
+
+
+# --- tasks: the robot's scale and the paper's per-task numbers --------------------------------
 
 @dataclasses.dataclass(frozen=True)
 class TaskPreset:
@@ -41,84 +60,54 @@ class TaskPreset:
   env: str
   total_steps: int
   episode_length: int
-  alpha: tuple[float, float, float]
-  s_o: tuple[float, float, float]
-  rho: dict  # method -> homeostasis target rate
-  agent: dict  # AgentConfig overrides (scale of the robot)
+  agent: dict  # dotted AgentConfig overrides: the robot's scale, alpha, S_O
+  rho: dict  # method -> homeostasis target rate (the Ref methods)
 
 
-_ANT = {}
-_POINT_TD3 = td3.TD3Config(hidden=(64, 64), lr_actor=1e-3, buffer_size=50_000)
-_POINT_PPO = ppo.PPOConfig(hidden=(64, 64), std_decay_every=20_000)
+_ANT: dict = {}
+_POINT_TD3 = {"hidden": (64, 64), "lr_actor": 1e-3}
+_POINT_PPO = {"hidden": (64, 64), "std_decay_every": 20_000}
 _POINT = {
     "goal_range": (4.0, 4.0, 0.0), "warmup_steps": 2_000, "eval_every": 2_000,
-    "eval_episodes": 20,
-    "low": dataclasses.replace(_POINT_TD3, expl_noise=0.2),
-    "middle": dataclasses.replace(_POINT_TD3, buffer_size=10_000),
-    "middle_ppo": _POINT_PPO,
-    "top": {"starting_steps": 10_000, "ppo": dataclasses.replace(_POINT_PPO, discrete=True)},
+    "eval_episodes": 20, "top.starting_steps": 10_000,
+    **{f"low.{k}": v for k, v in _POINT_TD3.items()}, "low.buffer_size": 50_000,
+    "low.expl_noise": 0.2,
+    **{f"middle.{k}": v for k, v in _POINT_TD3.items()}, "middle.buffer_size": 10_000,
+    **{f"middle_ppo.{k}": v for k, v in _POINT_PPO.items()},
+    **{f"top.ppo.{k}": v for k, v in _POINT_PPO.items()},
 }
-_PUSH = dict(alpha=(0.0, 0.4, 0.7), s_o=(0.6, 0.6, 0.6),
-             rho={"ref-ppo": 0.01, "ref-uniform": 0.0001})
-_FALL = dict(alpha=(-0.2, -0.2, 0.7), s_o=(0.6, 0.6, 0.9),
-             rho={"ref-ppo": 0.001, "ref-uniform": 0.001})
+_PUSH = {"top.alpha": (0.0, 0.4, 0.7), "top.s_o": (0.6, 0.6, 0.6)}
+_FALL = {"top.alpha": (-0.2, -0.2, 0.7), "top.s_o": (0.6, 0.6, 0.9)}
+_PUSH_RHO = {"ref-ppo": 0.01, "ref-uniform": 0.0001}
+_FALL_RHO = {"ref-ppo": 0.001, "ref-uniform": 0.001}
 
 TASKS = {
-    "AntPush": TaskPreset("AntPush", 3_150_000, 1000, agent=_ANT, **_PUSH),
-    "AntFall": TaskPreset("AntFall", 6_000_000, 1000, agent=_ANT, **_FALL),
+    "AntPush": TaskPreset("AntPush", 3_150_000, 1000, {**_ANT, **_PUSH}, _PUSH_RHO),
+    "AntFall": TaskPreset("AntFall", 6_000_000, 1000, {**_ANT, **_FALL}, _FALL_RHO),
     # Not in the paper: HIRO's sanity check, with Push's numbers.
-    "AntMaze": TaskPreset("AntMaze", 3_150_000, 1000, agent=_ANT, **_PUSH),
-    "PointPush": TaskPreset("PointPush", 100_000, 100, agent=_POINT, **_PUSH),
-    "PointFall": TaskPreset("PointFall", 100_000, 100, agent=_POINT, **_FALL),
-    "PointMaze": TaskPreset("PointMaze", 40_000, 100, agent=_POINT, **_PUSH),
+    "AntMaze": TaskPreset("AntMaze", 3_150_000, 1000, {**_ANT, **_PUSH}, _PUSH_RHO),
+    "PointPush": TaskPreset("PointPush", 100_000, 100, {**_POINT, **_PUSH}, _PUSH_RHO),
+    "PointFall": TaskPreset("PointFall", 100_000, 100, {**_POINT, **_FALL}, _FALL_RHO),
+    "PointMaze": TaskPreset("PointMaze", 40_000, 100, {**_POINT, **_PUSH}, _PUSH_RHO),
 }
 
 
-def _method_fields(method: str, task: TaskPreset) -> dict:
-  ours = {"switch": "top", "middle_goal_noise": 0.0}
-  if method == "hiro":
-    return {"switch": "none", "middle_goal_noise": 1.0, "smoothing": True}
-  if method in ("ref-uniform", "ref-ppo"):
-    return {"switch": "homeostasis", "middle_goal_noise": 0.0,
-            "explore_mode": "random" if method == "ref-uniform" else "ppo",
-            "rho": task.rho[method], **({"ref_ppo": True} if method == "ref-ppo" else {})}
-  mods = {"ours": (True, True), "ours-no-reward-mod": (False, True),
-          "ours-no-loss-mod": (True, False), "ours-no-mods": (False, False)}[method]
-  return {**ours, "reward_mod": mods[0], "loss_mod": mods[1]}
-
-
-def make_config(method: str, task: str, **overrides) -> AgentConfig:
-  """The AgentConfig of ``method`` on ``task``; ``overrides`` replace AgentConfig fields."""
+def preset_overrides(method: str, task: str) -> dict:
+  """The dotted overrides of ``method`` on ``task``: the task's, the method's, its rho."""
   if method not in METHODS:
     raise ValueError(f"method must be one of {', '.join(METHODS)}; got {method!r}")
   if task not in TASKS:
     raise ValueError(f"task must be one of {', '.join(TASKS)}; got {task!r}")
   preset = TASKS[task]
-  fields = dict(preset.agent)
-  top_fields = dict(fields.pop("top", {}))
-  m = _method_fields(method, preset)
-  top_fields.update(alpha=preset.alpha, s_o=preset.s_o,
-                    reward_mod=m.pop("reward_mod", True), loss_mod=m.pop("loss_mod", True))
-  middle = fields.get("middle", td3.TD3Config())
-  fields["middle"] = dataclasses.replace(middle, target_smoothing=m.pop("smoothing", False))
-  rho = m.pop("rho", None)
-  if rho is not None:
-    fields["homeostasis"] = homeostasis.HomeostasisConfig(rho=rho)
-  if m.pop("ref_ppo", False):  # the paper's Ref:PPO: std 0.6 (decay commented out), every 40
-    fields["middle_ppo"] = dataclasses.replace(fields.get("middle_ppo", ppo.PPOConfig()),
-                                               std_decay=0.0)
-    fields["middle_ppo_every"] = REF_PPO_EVERY
-  fields.update(m)
-  fields["top"] = TopConfig(**top_fields)
-  unknown = set(overrides) - {f.name for f in dataclasses.fields(AgentConfig)}
-  if unknown:
-    raise ValueError(f"unknown AgentConfig field(s) {sorted(unknown)}; valid: "
-                     f"{', '.join(f.name for f in dataclasses.fields(AgentConfig))}")
-  fields.update(overrides)
-  return AgentConfig(**fields)
+  rho = {"homeostasis.rho": preset.rho[method]} if method in preset.rho else {}
+  return merge(preset.agent, METHOD_OVERRIDES[method], rho)
 
 
-PRESETS = ("paper", "quick")
+def make_config(method: str, task: str, overrides: Mapping[str, Any] | None = None,
+                **fields) -> AgentConfig:
+  """The AgentConfig of ``method`` on ``task``, then ``overrides`` (dotted paths) and
+  ``fields`` (top-level AgentConfig fields, the same as paths without a dot)."""
+  return override(AgentConfig(), merge(preset_overrides(method, task), overrides or {}, fields))
 
 
 def size_buffers(config: AgentConfig, steps: int) -> AgentConfig:
@@ -127,11 +116,9 @@ def size_buffers(config: AgentConfig, steps: int) -> AgentConfig:
   The paper's buffers are append-only, sized for the run (6M Low transitions, 600K Middle):
   the Low stores one transition per env step, the Middle one per c env steps.
   """
-  env_steps = steps * config.num_envs
-  return dataclasses.replace(
-      config, low=dataclasses.replace(config.low, buffer_size=max(env_steps, 1)),
-      middle=dataclasses.replace(config.middle,
-                                 buffer_size=max(-(-steps // config.c) * config.num_envs, 1)))
+  return override(config, {
+      "low.buffer_size": max(steps * config.num_envs, 1),
+      "middle.buffer_size": max(-(-steps // config.c) * config.num_envs, 1)})
 
 
 @dataclasses.dataclass(frozen=True)
@@ -145,36 +132,33 @@ class RunSpec:
   checkpoint_every: int  # vector steps between checkpoints (a multiple of chunk)
 
 
-# quick: a 2-core CPU runs a few methods of a point task in about 10 minutes; on the ant it
-# shows the whole pipeline (warm-up, starting mode, all modes live, evaluations) in minutes,
-# not learning.
-_QUICK_POINT = dict(steps=40_000, seeds=4, chunk=2_000, checkpoint_every=10_000)
-_QUICK_ANT_AGENT = {"warmup_steps": 1_000, "eval_every": 2_000, "eval_episodes": 2,
-                    "top": {"starting_steps": 1_000}}
+# (preset, robot) -> (dotted agent overrides, run size); the paper's length is the task's.
+# paper: a row per evaluation (eval_every), SPEC's 5 seeds and a checkpoint every 100K steps
+# on the ant. quick: a 2-core CPU runs a few methods of a point task in about 10 minutes; on
+# the ant it shows the whole pipeline (warm-up, starting mode, all modes live, evaluations) in
+# minutes, not learning.
+PRESET_TABLE = {
+    ("paper", "point"): ({}, {"seeds": 5, "chunk": 2_000, "checkpoint_every": 2_000}),
+    ("paper", "ant"): ({}, {"seeds": 5, "chunk": 10_000, "checkpoint_every": 100_000}),
+    ("quick", "point"): ({}, {"steps": 40_000, "seeds": 4, "chunk": 2_000,
+                              "checkpoint_every": 10_000}),
+    ("quick", "ant"): ({"warmup_steps": 1_000, "eval_every": 2_000, "eval_episodes": 2,
+                        "top.starting_steps": 1_000},
+                       {"steps": 6_000, "seeds": 1, "chunk": 1_000, "checkpoint_every": 2_000}),
+}
+PRESETS = ("paper", "quick")
 
 
 def make_preset(preset: str, method: str, task: str) -> tuple[AgentConfig, RunSpec]:
-  """The agent config and run size of ``preset`` ("paper" or "quick") for method x task."""
+  """The agent config and run size of ``preset`` ("paper" or "quick") for method x task,
+  with replay buffers sized for the run."""
   if preset not in PRESETS:
     raise ValueError(f"preset must be one of {', '.join(PRESETS)}; got {preset!r}")
-  config = make_config(method, task)
+  agent, run = PRESET_TABLE[preset, "point" if task.startswith("Point") else "ant"]
+  config = make_config(method, task, agent)
   t = TASKS[task]
-  point = task.startswith("Point")
-  if preset == "paper":
-    chunk = config.eval_every
-    every = chunk if point else 100_000
-    return size_buffers(config, t.total_steps), RunSpec(
-        steps=t.total_steps, seeds=5, episode_length=t.episode_length, chunk=chunk,
-        checkpoint_every=every)
-  if point:
-    spec = RunSpec(episode_length=t.episode_length, **_QUICK_POINT)
-    return size_buffers(config, spec.steps), spec
-  top = dataclasses.replace(config.top, **_QUICK_ANT_AGENT["top"])
-  config = dataclasses.replace(config, top=top, **{k: v for k, v in _QUICK_ANT_AGENT.items()
-                                                   if k != "top"})
-  return size_buffers(config, 6_000), RunSpec(steps=6_000, seeds=1,
-                                              episode_length=t.episode_length, chunk=1_000,
-                                              checkpoint_every=2_000)
+  spec = RunSpec(**{"steps": t.total_steps, "episode_length": t.episode_length, **run})
+  return size_buffers(config, spec.steps), spec
 
 
 def widen(config: AgentConfig, spec: RunSpec, envs_per_seed: int,
@@ -209,18 +193,14 @@ def widen(config: AgentConfig, spec: RunSpec, envs_per_seed: int,
   def vec(n):  # env steps -> vector steps
     return -(-n // E)
 
-  def batch(cfg):
-    return dataclasses.replace(cfg, batch_size=-(-cfg.batch_size * E // U))
-
-  top = dataclasses.replace(
-      config.top, starting_steps=vec(config.top.starting_steps),
-      ppo=dataclasses.replace(config.top.ppo, std_decay_every=vec(config.top.ppo.std_decay_every)))
-  config = dataclasses.replace(
-      config, num_envs=E, low_updates=U, middle_updates=U, low=batch(config.low),
-      middle=batch(config.middle), warmup_steps=vec(config.warmup_steps),
-      eval_every=vec(config.eval_every), top=top,
-      middle_ppo=dataclasses.replace(config.middle_ppo,
-                                     std_decay_every=vec(config.middle_ppo.std_decay_every)))
+  config = override(config, {
+      "num_envs": E, "low_updates": U, "middle_updates": U,
+      "low.batch_size": -(-config.low.batch_size * E // U),
+      "middle.batch_size": -(-config.middle.batch_size * E // U),
+      "warmup_steps": vec(config.warmup_steps), "eval_every": vec(config.eval_every),
+      "top.starting_steps": vec(config.top.starting_steps),
+      "top.ppo.std_decay_every": vec(config.top.ppo.std_decay_every),
+      "middle_ppo.std_decay_every": vec(config.middle_ppo.std_decay_every)})
   chunk = vec(spec.chunk)
   steps = -(-vec(spec.steps) // chunk) * chunk
   every = max(chunk, vec(spec.checkpoint_every) // chunk * chunk)
