@@ -22,6 +22,7 @@ import jax
 import envs
 from benchmarks import common
 from envs import ant_maze, tasks
+from envs import rollout as env_rollout
 
 
 def _brax_ant():
@@ -42,12 +43,12 @@ def measure(env, batch: int, steps: int, repeats: int) -> dict:
   """Compile time and steady-state env steps/s of ``steps`` vmapped steps."""
   limit = getattr(env, "action_limit", 1.0)
 
-  def rollout(state, key):
-    def body(s, k):
-      a = jax.random.uniform(k, (batch, env.action_size), minval=-limit, maxval=limit)
-      return jax.vmap(env.step)(s, a), None
+  def act(carry, s, k):
+    return jax.random.uniform(k, (env.action_size,), minval=-limit, maxval=limit)
 
-    return jax.lax.scan(body, state, jax.random.split(key, steps))[0]
+  def rollout(state, key):  # every env its own keys; the scan inside the vmap
+    keys = jax.random.split(key, (batch, steps))
+    return jax.vmap(lambda s, k: env_rollout.unroll(env, s, act, k)[0][0])(state, keys)
 
   reset = jax.jit(jax.vmap(env.reset))
   run = jax.jit(rollout)

@@ -4,7 +4,7 @@
     env = envs.make("AntPush", episode_length=500)
     state = jax.jit(env.reset)(jax.random.PRNGKey(0))
     state = jax.jit(env.step)(state, jp.zeros(env.action_size))
-    state.metrics["success"], env.target, env.success_radius, env.mj_model
+    state.success, state.distance, env.target, env.success_radius, env.mj_model
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ with contextlib.redirect_stdout(io.StringIO()):
 
 from envs import tasks
 from envs.ant_maze import AntConfig, AntMazeEnv
-from envs.base import EnvConfig, MazeState
+from envs.base import EnvConfig, MazeEnv, MazeState
 from envs.point_maze import PointConfig, PointMazeEnv
 
 _ROBOTS = {"Ant": (AntMazeEnv, AntConfig), "Point": (PointMazeEnv, PointConfig)}
@@ -51,4 +51,4 @@ def make(name: str, **overrides):
 
 
 __all__ = ["make", "NAMES", "valid_overrides", "AntMazeEnv", "PointMazeEnv", "AntConfig",
-           "PointConfig", "EnvConfig", "MazeState", "tasks"]
+           "PointConfig", "EnvConfig", "MazeEnv", "MazeState", "tasks"]

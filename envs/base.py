@@ -2,12 +2,14 @@
 
 Task reward is HIRO's ``-||xyz_torso - target||`` (3-D); success is that distance <= the task's
 success radius. The env never terminates by itself: ``done`` is raised only by ``truncation``
-when the step counter reaches ``episode_length``; the caller resets.
+when the step counter reaches ``episode_length``; the caller resets. ``MazeEnv`` is the
+contract the agent relies on; both robots implement it.
 """
 
 from __future__ import annotations
 
 import dataclasses
+from typing import Protocol, runtime_checkable
 
 import jax
 import jax.numpy as jp
@@ -22,13 +24,44 @@ TIME_SCALE = 0.001  # last observation entry: t * 0.001 (HIRO)
 
 @struct.dataclass
 class MazeState(brax_base.State):
-  """brax's env state plus the episode clock as typed fields.
+  """brax's env state plus the episode clock and the task's outcome as typed fields.
 
-  ``metrics`` holds ``reward_task`` (-distance), ``distance`` and ``success`` (0/1).
+  ``metrics`` holds ``reward_task`` (-distance), ``distance`` and ``success`` (0/1) too, as
+  brax's envs do. (The defaults are brax's convention for fields after defaulted ones.)
   """
 
   steps: jax.Array = None  # steps taken in this episode (int32)
   truncation: jax.Array = None  # 1.0 at the last step of an episode
+  success: jax.Array = None  # 1.0 within the task's success radius of the target
+  distance: jax.Array = None  # ||xyz - target||
+
+
+@runtime_checkable
+class MazeEnv(Protocol):
+  """The env contract of the agent: ``obs[:3]`` is the robot's xyz, the target is an xyz
+  point, actions lie in ``[-action_limit, action_limit]``, and every state carries
+  ``success`` and ``distance``; the env never ends an episode by itself."""
+
+  target: jax.Array  # (3,) xyz
+  success_radius: float
+
+  @property
+  def observation_size(self) -> int: ...
+
+  @property
+  def action_size(self) -> int: ...
+
+  @property
+  def action_limit(self) -> float: ...
+
+  @property
+  def episode_length(self) -> int: ...
+
+  def reset(self, rng: jax.Array) -> MazeState: ...
+
+  def step(self, state: MazeState, action: jax.Array) -> MazeState: ...
+
+  def block_positions(self, state: MazeState) -> jax.Array: ...
 
 
 @dataclasses.dataclass(frozen=True)
@@ -86,4 +119,6 @@ class MazeTask:
         metrics=metrics,
         steps=steps,
         truncation=truncation,
+        success=metrics["success"],
+        distance=metrics["distance"],
     )

@@ -19,22 +19,24 @@ import time
 import jax
 
 import envs
+from envs import rollout
 
 
 def run(name: str, episodes: int, episode_length: int, seed: int = 0) -> dict:
   env = envs.make(name, episode_length=episode_length)
   lim = env.action_limit
 
+  def act(carry, s, k):
+    return jax.random.uniform(k, (env.action_size,), minval=-lim, maxval=lim)
+
+  def observe(carry, s, s_next, k):
+    return carry, (s_next.success, s_next.distance)
+
   def episode(key):
     k0, k1 = jax.random.split(key)
-    state = env.reset(k0)
-
-    def body(s, k):
-      a = jax.random.uniform(k, (env.action_size,), minval=-lim, maxval=lim)
-      s = env.step(s, a)
-      return s, (s.metrics["success"], s.metrics["distance"])
-
-    state, (success, distance) = jax.lax.scan(body, state, jax.random.split(k1, episode_length))
+    _, (success, distance) = rollout.unroll(env, env.reset(k0), act,
+                                            jax.random.split(k1, episode_length),
+                                            observe=observe)
     return success.max(), distance[-1], distance.min()
 
   fn = jax.jit(jax.vmap(episode))

@@ -16,6 +16,7 @@ from typing import Callable
 import jax
 import jax.numpy as jp
 
+from envs import rollout
 from nonmono_jax import hierarchy
 
 
@@ -31,19 +32,21 @@ def make_episode(env, c: int, low_act: Callable, middle_act: Callable) -> Callab
 
   def episode(low_params, middle_params, key):
     s0 = env.reset(key)
-    g0 = middle_act(middle_params, s0.obs, target)
 
-    def body(carry, t):
-      s, g = carry
-      s2 = env.step(s, low_act(low_params, s.obs, g))
+    def act(g, s, t):
+      return low_act(low_params, s.obs, g)
+
+    def observe(g, s, s2, t):
+      """The goal transition, or the Middle's next goal every c steps; the step's record."""
       g2 = hierarchy.goal_transition(s.obs, g, s2.obs)
       g2 = jp.where((t + 1) % c == 0, middle_act(middle_params, s2.obs, target), g2)
       record = {"pos": s2.obs[:hierarchy.GOAL_SIZE], "goal": s.obs[:hierarchy.GOAL_SIZE] + g,
-                "success": s2.metrics["success"], "distance": s2.metrics["distance"],
-                "reward": s2.reward, "blocks": env.block_positions(s2)}
-      return (s2, g2), record
+                "success": s2.success, "distance": s2.distance, "reward": s2.reward,
+                "blocks": env.block_positions(s2)}
+      return g2, record
 
-    _, records = jax.lax.scan(body, (s0, g0), jp.arange(env.episode_length))
+    _, records = rollout.unroll(env, s0, act, jp.arange(env.episode_length),
+                                middle_act(middle_params, s0.obs, target), observe)
     return s0, records
 
   return episode

@@ -53,6 +53,25 @@ def test_env_exposes_task(name):
     assert env.success_radius == 5.0 and env.observation_size == 30 and env.action_size == 8
   else:
     assert env.success_radius == 2.5 and env.observation_size == 7 and env.action_size == 2
+  assert isinstance(env, envs.MazeEnv)  # the agent's env contract (envs/base.py)
+
+
+def test_unroll_is_the_step_loop():
+  """envs.rollout.unroll: the policy sees each state and its carry; observe gets (s, s')."""
+  from envs import rollout
+  env = envs.make("PointMaze", episode_length=10)
+  s0 = env.reset(jax.random.PRNGKey(0))
+  act = lambda n, s, t: jp.array([1.0, 0.0]) * (t % 2)
+  observe = lambda n, s, s2, t: (n + 1, (s.obs[0], s2.obs[0], n))
+  (last, n), (x, x2, count) = jax.jit(lambda s: rollout.unroll(env, s, act, jp.arange(6), 0,
+                                                               observe))(s0)
+  s = s0
+  for t in range(6):
+    s = env.step(s, jp.array([1.0, 0.0]) * (t % 2))
+  np.testing.assert_allclose(last.obs, s.obs, rtol=1e-6)
+  np.testing.assert_array_equal(count, np.arange(6))
+  np.testing.assert_allclose(x[1:], x2[:-1])
+  assert int(n) == 6 and float(x2[-1] - x[0]) > 0
 
 
 @pytest.mark.parametrize("name", ["AntPush", "AntFall", "PointFall"])
@@ -90,6 +109,8 @@ def _check_clock_reward_and_obs(env, states):
     dist = np.linalg.norm(xyz - np.asarray(env.target), axis=-1)
     np.testing.assert_allclose(np.asarray(s.reward), -dist, rtol=1e-5)
     np.testing.assert_allclose(np.asarray(s.metrics["success"]), dist <= env.success_radius)
+    np.testing.assert_array_equal(np.asarray(s.success), np.asarray(s.metrics["success"]))
+    np.testing.assert_allclose(np.asarray(s.distance), dist, rtol=1e-5)
     assert np.all(np.isfinite(np.asarray(s.obs)))
 
 
