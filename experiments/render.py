@@ -22,13 +22,12 @@ import jax.numpy as jp
 import numpy as np
 
 import envs
-from experiments import cli
-from nonmono_jax import evaluate, io, train
+from nonmono_jax import evaluate, io, plan as plan_lib
 
 
 def rollout(run_dir: str, method: str | None = None, seed: int = 0, key: int = 0) -> dict:
   """One evaluation episode of a saved run: positions, goals, blocks, success per step."""
-  plan = cli.plan_from_json(cli.read_config(run_dir), run_dir)
+  plan = plan_lib.load_run(run_dir)  # its config.json, whatever today's presets say
   method = method or next(iter(plan.configs))
   if method not in plan.configs:
     raise ValueError(f"method {method!r} is not in this run ({', '.join(plan.configs)})")
@@ -36,7 +35,7 @@ def rollout(run_dir: str, method: str | None = None, seed: int = 0, key: int = 0
   if not 0 <= seed < spec.seeds:
     raise ValueError(f"seed must be in [0, {spec.seeds}), got {seed}")
   env = envs.make(plan.task, episode_length=spec.episode_length)
-  trainer = train.make_trainer(env, config, num_seeds=spec.seeds, chunk_steps=spec.chunk)
+  trainer = plan.trainer(method)
   ckpts = io.Checkpoints(os.path.join(run_dir, "checkpoints", method))
   step = ckpts.latest_step()
   if step is None:
@@ -62,7 +61,7 @@ def rollout(run_dir: str, method: str | None = None, seed: int = 0, key: int = 0
 
   out = jax.tree.map(np.asarray, episode(jax.random.PRNGKey(key)))
   return {**out, "env": env, "task": plan.task, "method": method, "seed": seed, "step": step,
-          "num_envs": config.num_envs}
+          "num_envs": config.num_envs, "warnings": plan.warnings}
 
 
 def draw(roll: dict, path: str, max_frames: int = 150, fps: int = 15) -> int:
@@ -139,6 +138,8 @@ def main(argv=None) -> int:
     roll = rollout(args.dir, args.method, args.seed, args.key)
   except (ValueError, OSError, io.CheckpointError) as e:
     p.exit(2, f"{p.prog}: error: {e}\n")
+  for warning in roll["warnings"]:
+    print(f"warning: {warning}", file=sys.stderr)
   out = args.out or os.path.join(args.dir, f"{roll['method']}_seed{args.seed}.gif")
   try:
     n = draw(roll, out, args.max_frames)

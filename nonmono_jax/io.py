@@ -295,11 +295,7 @@ class CheckpointError(RuntimeError):
 
 def first_non_finite(states, metrics: dict) -> tuple[int, str] | None:
   """(seed, where) of the first NaN or Inf in the learners' parameters or the chunk's losses."""
-  parts = {"low": states.low.params, "middle": states.middle.params}
-  if states.middle_ppo is not None:
-    parts["middle_ppo"] = states.middle_ppo.params
-  if states.top is not None:
-    parts["top"] = states.top.params
+  parts = dict(_learner_params(states))
   for name, value in metrics.items():
     if name.split("/")[0] in parts or name in ("reward",):
       parts[f"metric {name}"] = value
@@ -312,3 +308,13 @@ def first_non_finite(states, metrics: dict) -> tuple[int, str] | None:
       if not ok[seed]:
         return seed, name
   return None
+
+
+def _learner_params(states) -> dict:
+  """The learners' parameters by level name: ``SeedState.learner_params()``; for a state
+  without it, those of its ``low``, ``middle``, ``middle_ppo`` and ``top`` that it has."""
+  if hasattr(states, "learner_params"):
+    return states.learner_params()
+  levels = ("low", "middle", "middle_ppo", "top")
+  return {level: getattr(states, level).params for level in levels
+          if getattr(getattr(states, level, None), "params", None) is not None}

@@ -280,11 +280,13 @@ def test_widen_keeps_the_paper_per_env_step():
 
 
 def test_a_widened_run_resumes_with_its_saved_plan(tmp_path):
+  from nonmono_jax import plan as plan_lib
+
   args = cli.make_parser("PointMaze").parse_args(
       ["--method", "ours", "--envs-per-seed", "4", "--grad-steps", "2", "--out", str(tmp_path)])
   plan = cli.plan_from_args("PointMaze", args)
-  again = cli.plan_from_json(json.loads(json.dumps(cli.plan_to_json(plan))), str(tmp_path))
-  assert again.configs == plan.configs and again.spec == plan.spec
+  again = plan_lib.from_json(json.loads(json.dumps(plan_lib.to_json(plan))), str(tmp_path))
+  assert again.configs == plan.configs and again.spec == plan.spec and not again.warnings
   assert plan.configs["ours"].num_envs == 4 and plan.spec.steps == 10_000
   with pytest.raises(ValueError, match="--grad-steps needs --envs-per-seed"):
     cli.plan_from_args("PointMaze", cli.make_parser("PointMaze").parse_args(["--grad-steps", "2"]))

@@ -1,0 +1,310 @@
+"""What a run is: its task, methods, configs and size, made new or loaded from ``config.json``.
+
+    plan = plan_lib.new_run("PointMaze", ["ours", "hiro"], preset="quick", out="runs/pm",
+                            overrides={"top.alpha": (0, 0.4, 0.7)}, run={"steps": 6000})
+    plan = plan_lib.load_run("runs/pm")     # config.json is the source of truth
+    plan.warnings                           # where it differs from today's presets
+
+A new run is built from the presets (``methods``) and dotted overrides; a saved one is read
+back from its ``config.json`` (``config.config_from_dict``), not rebuilt: a preset default
+changed since the run started is a warning, and the run resumes, plots and renders as it
+was. Every value is checked before anything compiles (``check_plan``, ``check_memory``);
+errors are ValueErrors of one line naming the field (or ``config.json``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime
+import os
+import platform
+import sys
+from importlib import metadata
+
+import jax
+import numpy as np
+
+import envs
+from nonmono_jax import io, methods, train, validation
+from nonmono_jax.config import AgentConfig, config_from_dict, differences, flatten, get
+from nonmono_jax.config import missing_fields, override
+
+PACKAGES = ("jax", "jaxlib", "mujoco", "mujoco-mjx", "brax", "flax", "optax", "orbax-checkpoint",
+            "numpy", "nonmono-jax")
+RUN_FIELDS = tuple(f.name for f in dataclasses.fields(methods.RunSpec))
+EVAL_RECORD_BYTES = 64  # an evaluation step's record (position, goal, blocks, success), about
+
+
+@dataclasses.dataclass
+class Plan:
+  task: str
+  preset: str
+  seed: int
+  out: str
+  spec: methods.RunSpec
+  configs: dict  # method -> AgentConfig
+  overrides: dict  # dotted paths given on top of the presets
+  widen: dict = dataclasses.field(default_factory=dict)  # envs_per_seed, grad_steps
+  warnings: list = dataclasses.field(default_factory=list)  # a loaded run against today's code
+  trainers: dict = dataclasses.field(default_factory=dict, repr=False, compare=False)
+
+  def trainer(self, method: str) -> train.Trainer:
+    """The method's trainer, built once (the memory check and the run share it)."""
+    if method not in self.trainers:
+      env = envs.make(self.task, episode_length=self.spec.episode_length)
+      self.trainers[method] = train.make_trainer(env, self.configs[method],
+                                                 num_seeds=self.spec.seeds,
+                                                 chunk_steps=self.spec.chunk)
+    return self.trainers[method]
+
+
+# --- a new run ----------------------------------------------------------------------------------
+
+def new_run(task: str, method_names, preset: str = "paper", out: str | None = None,
+            seed: int = 0, overrides: dict | None = None, run: dict | None = None,
+            envs_per_seed: int | None = None, grad_steps: int | None = None) -> Plan:
+  """The checked plan of a new run: the presets of ``method_names`` on ``task``, widened
+  (``methods.widen``), with the dotted ``overrides`` and the run size changes ``run``
+  (``steps``, ``seeds``, ``chunk``, ``checkpoint_every``, ``episode_length``); replay buffers
+  sized for the run unless an override gives a size. Raises ValueError naming the field."""
+  overrides = flatten(overrides or {})
+  if grad_steps is not None and envs_per_seed is None:
+    raise ValueError("--grad-steps needs --envs-per-seed")
+  validation.check_value("--seed", seed)
+  specs = {m: preset_config(preset, m, task, overrides, envs_per_seed, grad_steps)
+           for m in method_names}
+  spec = _resized(next(iter(specs.values()))[1], run or {})
+  configs = {m: sized_for_run(c, spec, overrides) for m, (c, _) in specs.items()}
+  check_plan(task, spec, configs)
+  stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
+  out = out if out is not None else os.path.join("runs", f"{task.lower()}-{stamp}")
+  if not out:
+    raise ValueError("--out must not be empty")
+  return Plan(task=task, preset=preset, seed=seed, out=out, spec=spec, configs=configs,
+              overrides=overrides,
+              widen={"envs_per_seed": envs_per_seed, "grad_steps": grad_steps})
+
+
+def preset_config(preset: str, method: str, task: str, overrides: dict,
+                  envs_per_seed: int | None = None, grad_steps: int | None = None):
+  """(config, spec) of today's preset, widened, with the overrides (before the run's size)."""
+  config, spec = methods.make_preset(preset, method, task)
+  if envs_per_seed is not None:
+    config, spec = methods.widen(config, spec, envs_per_seed, grad_steps)
+  return _explained(override, overrides, config, overrides), spec
+
+
+def _resized(spec: methods.RunSpec, run: dict) -> methods.RunSpec:
+  unknown = set(run) - set(RUN_FIELDS)
+  if unknown:
+    raise ValueError(f"unknown run field(s) {sorted(unknown)}; valid: {', '.join(RUN_FIELDS)}")
+  changes = {k: v for k, v in run.items() if v is not None}
+  if "chunk" in changes and "checkpoint_every" not in changes:
+    changes["checkpoint_every"] = max(changes["chunk"], spec.checkpoint_every // changes["chunk"]
+                                      * changes["chunk"])
+  return dataclasses.replace(spec, **changes)
+
+
+def sized_for_run(config: AgentConfig, spec: methods.RunSpec, overrides: dict) -> AgentConfig:
+  """Replay buffers that hold the whole run (``spec.steps``), as the paper's never evict;
+  a buffer size given as an override wins (a smaller one is a ring)."""
+  return override(methods.size_buffers(config, spec.steps), overrides)
+
+
+def _explained(fn, flat: dict, *args):
+  """``fn(*args)``; a ValueError about one field that another, user-set one caused (``--c 7``
+  breaking ``middle_ppo_every``) also names the user's overrides it mentions."""
+  try:
+    return fn(*args)
+  except ValueError as e:
+    msg = str(e)
+    subject = msg.split(" ")[0]
+    mentioned = [n for n in flat if n != subject and (f" {n} " in msg or f" {n}:" in msg
+                                                      or f"{n} (" in msg)]
+    if mentioned:
+      given = ", ".join(f"--{n} {_show(flat[n])}" for n in mentioned)
+      msg += f" (from {given}: change {subject} too, or that flag)"
+    raise ValueError(msg) from None
+
+
+def _show(value) -> str:
+  return " ".join(map(str, value)) if isinstance(value, (list, tuple)) else str(value)
+
+
+# --- checks before anything compiles -------------------------------------------------------------
+
+def check_plan(task: str, spec: methods.RunSpec, configs: dict) -> None:
+  """The run size and every config: finite, int32, consistent; raises ValueError naming it."""
+  validation.check(spec, flags=True)
+  for name in RUN_FIELDS:
+    if getattr(spec, name) < 1:
+      raise ValueError(f"--{name.replace('_', '-')} must be >= 1, got {getattr(spec, name)}")
+  if spec.steps % spec.chunk:
+    raise ValueError(f"--steps ({spec.steps}) must be a multiple of --chunk ({spec.chunk})")
+  if spec.checkpoint_every % spec.chunk:
+    raise ValueError(f"--checkpoint-every ({spec.checkpoint_every}) must be a multiple of "
+                     f"--chunk ({spec.chunk})")
+  env = envs.make(task, episode_length=spec.episode_length)
+  for method, config in configs.items():
+    validation.check(config)
+    config.check_env(env)
+    validation.check_value(f"--steps x num_envs of {method}", spec.steps * config.num_envs)
+  if spec.seeds % jax.device_count():
+    raise ValueError(f"--seeds ({spec.seeds}) must be a multiple of the device count "
+                     f"({jax.device_count()})")
+
+
+def state_bytes(plan: Plan, method: str) -> int:
+  """Bytes of the method's train state for all seeds (buffers, networks, envs): the shapes of
+  ``trainer.init`` from ``jax.eval_shape``, so nothing is allocated."""
+  shapes = jax.eval_shape(plan.trainer(method).init, jax.random.PRNGKey(0))
+  return sum(int(np.prod(x.shape, dtype=np.float64)) * x.dtype.itemsize
+             for x in jax.tree.leaves(shapes))
+
+
+def check_memory(plan: Plan) -> None:
+  """Refuses a run whose train state plus its evaluation's per-step records exceed the memory
+  available (methods run one after another: each is checked on its own)."""
+  have = available_bytes()
+  spec = plan.spec
+  for method, config in plan.configs.items():
+    state = state_bytes(plan, method)
+    evals = (spec.seeds * config.num_envs * config.eval_episodes * spec.episode_length
+             * EVAL_RECORD_BYTES)
+    if have is not None and state + evals > have:
+      raise ValueError(f"{method} for {spec.seeds} seeds needs {(state + evals) / 2**30:.1f} "
+                       f"GiB (train state with its replay buffers {state / 2**30:.1f}, "
+                       f"evaluation episodes {evals / 2**30:.1f}), more than the "
+                       f"{have / 2**30:.1f} GiB available: use fewer --seeds, smaller "
+                       f"buffers (--low.buffer_size, --middle.buffer_size) or shorter episodes")
+
+
+def available_bytes() -> int | None:
+  """Memory the run may use: the devices' limit on an accelerator, else MemAvailable."""
+  if jax.default_backend() != "cpu":
+    stats = jax.devices()[0].memory_stats() or {}
+    limit = stats.get("bytes_limit")
+    return None if limit is None else limit * jax.device_count()
+  try:
+    with open("/proc/meminfo") as f:
+      for line in f:
+        if line.startswith("MemAvailable:"):
+          return int(line.split()[1]) * 1024
+  except OSError:
+    pass
+  try:
+    return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+  except (ValueError, OSError):
+    return None
+
+
+# --- config.json ---------------------------------------------------------------------------------
+
+def to_json(plan: Plan) -> dict:
+  """``config.json``: the plan (every config in full), library versions, device, command."""
+  return {"task": plan.task, "preset": plan.preset, "seed": plan.seed,
+          "methods": list(plan.configs), "run": io.to_jsonable(plan.spec),
+          "overrides": io.to_jsonable(plan.overrides), "widen": plan.widen,
+          "configs": {m: io.to_jsonable(c) for m, c in plan.configs.items()},
+          "versions": _versions(), "python": platform.python_version(),
+          "device": str(jax.devices()[0].device_kind), "platform": jax.default_backend(),
+          "device_count": jax.device_count(), "command": " ".join(sys.argv)}
+
+
+def _versions() -> dict:
+  out = {}
+  for name in PACKAGES:
+    try:
+      out[name] = metadata.version(name)
+    except metadata.PackageNotFoundError:
+      out[name] = None
+  return out
+
+
+def read_config(out: str):
+  """``OUT/config.json`` as JSON; raises ValueError naming the file."""
+  path = os.path.join(out, "config.json")
+  if not os.path.isfile(path):
+    raise ValueError(f"{out}: no config.json there (not a run folder)")
+  try:
+    return io.read_json(path)
+  except (OSError, UnicodeDecodeError) as e:
+    raise ValueError(f"{path}: cannot be read ({e})") from None
+  except ValueError as e:
+    raise ValueError(f"{path}: not valid JSON ({e})") from None
+
+
+def load_run(out: str, task: str | None = None) -> Plan:
+  """The run in folder ``out``, from its ``config.json`` (checked; ``task``: it must be one);
+  ``plan.warnings`` says where it differs from today's presets. Raises ValueError naming
+  ``OUT/config.json`` and what is wrong with it."""
+  return from_json(read_config(out), out, task)
+
+
+def from_json(payload, out: str, task: str | None = None) -> Plan:
+  """The plan ``config.json`` holds (see ``load_run``)."""
+  path = os.path.join(out, "config.json")
+  try:
+    _check_payload(payload)
+    if task is not None and payload["task"] != task:
+      raise ValueError(f"it is a {payload['task']} run, not {task}: resume it with python -m "
+                       f"experiments.{payload['task'].lower()}")
+    spec = methods.RunSpec(**payload["run"])
+    overrides = flatten(payload["overrides"])
+    widen = payload.get("widen", {})
+    configs, warnings = {}, []
+    for method in payload["methods"]:
+      configs[method], notes = _saved_config(payload, method, spec, overrides, widen)
+      warnings += [f"{path}: {method} {note}" for note in notes]
+    check_plan(payload["task"], spec, configs)
+  except (ValueError, TypeError, KeyError) as e:
+    raise ValueError(f"{path}: {e}") from None
+  return Plan(task=payload["task"], preset=payload["preset"], seed=payload["seed"], out=out,
+              spec=spec, configs=configs, overrides=overrides, widen=widen, warnings=warnings)
+
+
+def _saved_config(payload, method: str, spec, overrides: dict, widen: dict):
+  """(the saved config of ``method``, notes on how it differs from today's preset)."""
+  saved = payload["configs"].get(method)
+  if saved is None:
+    raise ValueError(f"configs has no entry for the method {method!r}")
+  try:
+    today, _ = preset_config(payload["preset"], method, payload["task"], overrides,
+                             widen.get("envs_per_seed"), widen.get("grad_steps"))
+    today = sized_for_run(today, spec, overrides)
+  except ValueError as e:
+    today, notes = None, [f"cannot be rebuilt from today's presets ({e}); config.json is used"]
+  config = config_from_dict(saved, today or AgentConfig())
+  if today is None:
+    return config, notes
+  notes = []
+  missing = missing_fields(saved, today)
+  if missing:
+    notes.append(f"has no {', '.join(missing)} (newer fields): today's preset values are used")
+  changed = [p for p in differences(config, today) if p not in missing]
+  if changed:
+    shown = "; ".join(f"{p} {get(config, p)!r} (today {get(today, p)!r})" for p in changed)
+    notes.append(f"differs from today's {payload['preset']} preset with its overrides: {shown}; "
+                 f"the run keeps its config.json")
+  return config, notes
+
+
+def _check_payload(payload) -> None:
+  """The keys and types ``config.json`` must have, before anything is read from it."""
+  if not isinstance(payload, dict):
+    raise ValueError(f"expected a JSON object, got a {type(payload).__name__}")
+  for key, kind in (("task", str), ("preset", str), ("seed", int), ("methods", list),
+                    ("run", dict), ("overrides", dict), ("configs", dict)):
+    if key not in payload:
+      raise ValueError(f"the key {key!r} is missing")
+    if not isinstance(payload[key], kind):
+      raise ValueError(f"{key} must be a {kind.__name__}, got {payload[key]!r}")
+  if payload["task"] not in envs.NAMES:
+    raise ValueError(f"task {payload['task']!r} is not one of {', '.join(envs.NAMES)}")
+  if set(payload["run"]) != set(RUN_FIELDS):
+    raise ValueError(f"run must have exactly the keys {', '.join(sorted(RUN_FIELDS))}")
+  for key, value in payload["run"].items():
+    if not isinstance(value, int) or isinstance(value, bool):
+      raise ValueError(f"run.{key} must be an integer, got {value!r}")
+  if not isinstance(payload.get("widen", {}), dict):
+    raise ValueError("widen must be an object")

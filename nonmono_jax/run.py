@@ -1,0 +1,266 @@
+"""A run as a library: make or load its plan, hold its folder, train its methods chunk by chunk.
+
+    from nonmono_jax import run, sinks
+    plan = run.new_run("PointMaze", ["ours"], preset="quick", out="runs/pm")  # or run.load_run(dir)
+    with run.open_folder(plan):                                # created, locked, config.json
+      outputs = [sinks.MetricsCsv(plan.out), sinks.JsonLines(plan.out)]
+      with sinks.closing(outputs):
+        for result in run.run_method(plan, "ours", outputs):  # one ChunkResult per chunk
+          print(result.env_step, result.metrics["low/critic_loss"])
+
+``run_method`` follows one method of the plan: restore the newest checkpoint that restores
+(or init), ``begin`` every sink at that step, then per chunk: train (``trainer.chunk``), stop on
+a NaN or Inf in a learner (``NonFinite``, the last checkpoint is the last good state), write
+the rows to every sink, checkpoint (the rows are on disk first), yield. A ``Clock`` with a
+time limit stops it before a chunk that would end past the limit (``TimeLimit``, checkpointed),
+after at least one chunk per process. ``run_plan`` runs every method of the plan in turn.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import math
+import os
+import signal
+import threading
+import time
+
+import jax
+
+from nonmono_jax import io, runlock
+from nonmono_jax.plan import Plan, load_run, new_run  # noqa: F401 - the run's library entry points
+from nonmono_jax.plan import to_json
+
+
+class NonFinite(RuntimeError):
+  """A NaN or Inf in a learner's parameters or losses (names the step, seed and level)."""
+
+
+class TimeLimit(RuntimeError):
+  """Stopped before a chunk that would end past the time limit (says what is checkpointed)."""
+
+
+class BadFolder(ValueError):
+  """A run folder that cannot be created or continued."""
+
+
+@dataclasses.dataclass
+class ChunkResult:
+  method: str
+  step: int  # vector steps reached
+  env_step: int  # env steps reached (step x num_envs)
+  rows: list  # metrics.csv's rows, one per seed (io.chunk_rows)
+  metrics: dict  # every metric of the chunk: name -> per-seed array (train.reduce_chunk)
+  states: object  # the train state after the chunk (donated by the next chunk: do not keep)
+  seconds: float  # wall time of the chunk
+  rate: float  # env steps/s over all seeds since this process's first chunk (nan on it)
+
+
+@dataclasses.dataclass
+class Clock:
+  """Wall-clock budget of one process: may the next chunk start?
+
+  A chunk's duration is estimated by the latest one of the same method; a method's first
+  chunk in a process (which compiles, or loads the compiled program from the cache) by the
+  longest first chunk seen so far in this run, kept in ``OUT/timing.json`` so that a resumed
+  process knows it too (0 before any).
+  """
+
+  deadline: float | None = None  # time.monotonic() value
+  first_chunk_s: float = 0.0
+  path: str | None = None  # timing.json of the run
+  progressed: bool = False  # has this process run a chunk? (the first always runs)
+
+  @classmethod
+  def starting_now(cls, limit_s: float | None, path: str | None = None, log=print) -> "Clock":
+    first = 0.0
+    if path and os.path.exists(path):
+      try:
+        first = float(io.read_json(path)["first_chunk_s"])
+        if not (math.isfinite(first) and first >= 0):
+          raise ValueError(first)
+      except (OSError, ValueError, KeyError, TypeError):
+        log(f"{path} is unreadable: ignored (it only estimates the first chunk's time)")
+        first = 0.0
+    return cls(None if limit_s is None else time.monotonic() + limit_s, first, path)
+
+  def saw_first_chunk(self, seconds: float) -> None:
+    if seconds > self.first_chunk_s:
+      self.first_chunk_s = seconds
+      if self.path:
+        io.write_json(self.path, {"first_chunk_s": seconds})
+
+  def allows(self, chunk_s: float | None) -> bool:
+    if self.deadline is None:
+      return True
+    estimate = self.first_chunk_s if chunk_s is None else chunk_s
+    return time.monotonic() + estimate <= self.deadline
+
+
+# --- the run folder ------------------------------------------------------------------------------
+
+@contextlib.contextmanager
+def open_folder(plan: Plan, resume: bool = False):
+  """Creates (a new run) and locks (``runlock``) the run folder for the block; a new run's
+  must be empty and gets ``config.json``, a resumed one must be complete. Raises BadFolder,
+  runlock.Locked or io.MetricsError."""
+  try:
+    os.makedirs(plan.out, exist_ok=resume)
+  except FileExistsError:
+    pass  # an empty folder: checked below with the lock held
+  except OSError as e:
+    raise BadFolder(f"--out {plan.out}: cannot create the folder ({e.strerror})") from None
+  with contextlib.ExitStack() as stack:
+    try:
+      stack.enter_context(runlock.hold(plan.out))
+    except OSError as e:
+      raise BadFolder(f"{plan.out}: cannot lock the run folder ({e.strerror})") from None
+    _check_folder(plan, resume)
+    yield plan
+
+
+def _check_folder(plan: Plan, resume: bool) -> None:
+  """With the lock held: a new run's folder is still empty; a resumed one is complete."""
+  if not resume:
+    if set(os.listdir(plan.out)) - {runlock.NAME}:
+      raise BadFolder(f"--out {plan.out} was filled by another process meanwhile")
+    try:
+      io.write_json(os.path.join(plan.out, "config.json"), to_json(plan))
+    except OSError as e:
+      raise BadFolder(f"{plan.out}/config.json: cannot be written ({e.strerror})") from None
+    return
+  metrics = os.path.join(plan.out, "metrics.csv")
+  ckpts = os.path.join(plan.out, "checkpoints")
+  if not os.path.exists(metrics) and os.path.isdir(ckpts) and os.listdir(ckpts):
+    raise BadFolder(f"{metrics} is missing while checkpoints exist: the rows before them "
+                    f"would be lost (put it back, or start a new run)")
+  if os.path.exists(metrics):
+    io.good_lines(metrics)  # raises MetricsError naming the file
+
+
+# --- training ------------------------------------------------------------------------------------
+
+def run_plan(plan: Plan, outputs, clock: Clock | None = None, log=print) -> None:
+  """Every method of the plan, one after another (each continues from its checkpoint)."""
+  clock = clock or Clock()
+  for method in plan.configs:
+    for _ in run_method(plan, method, outputs, clock, log):
+      pass
+
+
+def run_method(plan: Plan, method: str, outputs=(), clock: Clock | None = None, log=print):
+  """Trains ``method`` from its newest checkpoint to ``plan.spec.steps``, writing every chunk
+  to ``outputs`` (sinks) and yielding its ChunkResult; see the module doc."""
+  spec, config = plan.spec, plan.configs[method]
+  trainer = plan.trainer(method)
+  clock = clock or Clock()
+  ckpts = io.Checkpoints(os.path.join(plan.out, "checkpoints", method))
+  try:
+    start, states = ckpts.restore_newest(trainer.init(jax.random.PRNGKey(plan.seed)), log)
+    start = start or 0
+    if start:
+      log(f"{method}: resumed from step {start}")
+    for sink in outputs:
+      sink.begin(method, start * config.num_envs)
+    timing = _Timing()
+    for t0 in range(start, spec.steps, spec.chunk):
+      # At least one chunk per process: a limit shorter than start-up + a chunk still advances.
+      if not clock.allows(timing.chunk_s) and clock.progressed:
+        raise TimeLimit(_stop_for_time(plan, method, ckpts, t0, states))
+      states, result = _chunk(plan, method, trainer, states, t0, ckpts, timing)
+      for sink in outputs:
+        sink.write(result)
+      if result.step % spec.checkpoint_every == 0 or result.step == spec.steps:
+        ckpts.save(result.step, states)
+      clock.progressed = True
+      if _INTERRUPTED.is_set():  # a Ctrl-C that JAX swallowed (raised in a GC callback)
+        raise KeyboardInterrupt
+      timing.chunk_done(clock, spec.chunk * spec.seeds * config.num_envs)
+      yield result
+  finally:
+    ckpts.close()
+
+
+@dataclasses.dataclass
+class _Timing:
+  """A method's chunk times in this process: the latest chunk's wall time (for the clock,
+  checkpoint included) and the env steps/s since the first chunk (which compiles)."""
+
+  t_chunk: float = 0.0
+  chunk_s: float | None = None
+  t_start: float | None = None
+  steps_done: int = 0
+
+  def chunk_done(self, clock: Clock, env_steps: int) -> None:
+    self.chunk_s = time.monotonic() - self.t_chunk
+    if self.t_start is None:
+      clock.saw_first_chunk(self.chunk_s)
+      self.t_start = time.perf_counter()
+    else:
+      self.steps_done += env_steps
+
+
+def _chunk(plan: Plan, method: str, trainer, states, t0: int, ckpts, timing: _Timing):
+  """One chunk from step ``t0``: (states, its ChunkResult); raises NonFinite."""
+  spec, config = plan.spec, plan.configs[method]
+  timing.t_chunk = time.monotonic()
+  states, metrics = trainer.chunk(states, t0)
+  t_end = t0 + spec.chunk
+  bad = io.first_non_finite(states, metrics)  # waits for the chunk
+  if bad is not None:
+    last = ckpts.latest_step()
+    raise NonFinite(f"{method}: NaN or Inf in {bad[1]} of seed {bad[0]} within steps "
+                    f"{t0}-{t_end}; " + (f"the last good checkpoint is step {last}"
+                                         if last is not None else
+                                         "no checkpoint was saved before it"))
+  metrics = jax.device_get(metrics)
+  rows = io.chunk_rows(plan.task, method, t_end * config.num_envs, states, metrics,
+                       spec.episode_length, t_end >= config.first_eval_steps)
+  return states, ChunkResult(method=method, step=t_end, env_step=t_end * config.num_envs,
+                             rows=rows, metrics=metrics, states=states,
+                             seconds=time.monotonic() - timing.t_chunk,
+                             rate=_rate_after(timing, spec.chunk * spec.seeds * config.num_envs))
+
+
+def _rate_after(timing: _Timing, env_steps: int) -> float:
+  """The rate shown for a chunk: env steps/s since the first chunk of the process, this one
+  included (nan for the first)."""
+  if timing.t_start is None:
+    return float("nan")
+  return (timing.steps_done + env_steps) / max(time.perf_counter() - timing.t_start, 1e-9)
+
+
+def _stop_for_time(plan: Plan, method: str, ckpts: io.Checkpoints, t0: int, states) -> str:
+  """Checkpoints step ``t0`` if it is not yet; the time-limit message (saying what is saved)."""
+  if t0 and ckpts.latest_step() != t0:
+    ckpts.save(t0, states)
+  saved = "checkpointed" if t0 else "nothing of it run yet"
+  return (f"{method}: stopped at step {t0} of {plan.spec.steps} for the time limit ({saved}); "
+          f"continue with --resume {plan.out}")
+
+
+# --- Ctrl-C --------------------------------------------------------------------------------------
+
+_INTERRUPTED = threading.Event()
+
+
+@contextlib.contextmanager
+def remembering_ctrl_c():
+  """SIGINT raises KeyboardInterrupt as usual and is also remembered: one that lands in a
+  callback that swallows exceptions (JAX's garbage-collection hook) stops the run at the end
+  of the chunk instead of being lost."""
+  if threading.current_thread() is not threading.main_thread():
+    yield
+    return
+
+  def handler(signum, frame):
+    _INTERRUPTED.set()
+    raise KeyboardInterrupt
+
+  _INTERRUPTED.clear()
+  previous = signal.signal(signal.SIGINT, handler)
+  try:
+    yield
+  finally:
+    signal.signal(signal.SIGINT, previous)

@@ -1,0 +1,163 @@
+"""Where a run's chunk results go: each sink has ``begin`` (a method starts or resumes),
+``write`` (one ``run.ChunkResult``) and ``close``; ``closing`` closes them all on any exit.
+
+    MetricsCsv(out)          OUT/metrics.csv: the paper's columns (``io.COLUMNS``), one row per
+                             method, seed and chunk
+    JsonLines(out)           OUT/metrics.jsonl: those columns and every metric the program
+                             computes (``train.reduce_chunk``'s keys), one line per seed and chunk
+    TensorBoard(out)         OUT/tensorboard/<method>: means over seeds of both, S_E per seed
+    Progress(plan, enabled)  a tqdm bar, or a line per chunk: S_E, mode shares, env steps/s
+
+``begin(method, env_step)`` is where a resumed run drops what the files hold past the
+checkpoint it restarts from (and a half-written last line), so that a resumed run's files are
+those of a run that never stopped.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+
+import numpy as np
+
+from nonmono_jax import hierarchy, io
+
+
+@contextlib.contextmanager
+def closing(sinks):
+  """The sinks for the block, every one closed however it ends (the first error wins)."""
+  with contextlib.ExitStack() as stack:
+    for sink in sinks:
+      stack.callback(sink.close)
+    yield sinks
+
+
+class MetricsCsv:
+  """``metrics.csv`` (``io.MetricsFile``): rows flushed to disk before the chunk's checkpoint."""
+
+  def __init__(self, out: str):
+    self.file = io.MetricsFile(os.path.join(out, "metrics.csv"))
+
+  def begin(self, method: str, env_step: int) -> None:
+    self.file.truncate(method, env_step)
+
+  def write(self, result) -> None:
+    self.file.append(result.rows)
+
+  def close(self) -> None:
+    pass
+
+
+class JsonLines:
+  """``metrics.jsonl``: per seed and chunk, the row's columns and every metric of the chunk
+  (whatever keys ``train.reduce_chunk`` returns; a vector metric as a list)."""
+
+  def __init__(self, out: str):
+    self.path = os.path.join(out, "metrics.jsonl")
+
+  def begin(self, method: str, env_step: int) -> None:
+    if not os.path.exists(self.path):
+      return
+    with open(self.path) as f:
+      text = f.read()
+    keep = []
+    for line in text.splitlines(keepends=True):
+      try:
+        record = json.loads(line)
+      except ValueError:
+        continue  # a half-written line (a kill while writing it)
+      if line.endswith("\n") and not (record.get("method") == method
+                                      and record.get("env_step", 0) > env_step):
+        keep.append(line)
+    _replace_text(self.path, "".join(keep))
+
+  def write(self, result) -> None:
+    with open(self.path, "a") as f:
+      for row in result.rows:
+        seed = row["seed"]
+        values = {name: np.asarray(v)[seed].tolist() for name, v in result.metrics.items()}
+        f.write(json.dumps({**row, "step": result.step, **values}) + "\n")
+      f.flush()
+      os.fsync(f.fileno())
+
+  def close(self) -> None:
+    pass
+
+
+def _replace_text(path: str, text: str) -> None:
+  tmp = path + ".tmp"
+  with open(tmp, "w") as f:
+    f.write(text)
+    f.flush()
+    os.fsync(f.fileno())
+  os.replace(tmp, path)
+
+
+class TensorBoard:
+  """Event files per method: the mean over seeds of every numeric column and every metric
+  (a vector metric per component), and S_E per seed."""
+
+  def __init__(self, out: str):
+    self.out, self.writer = out, None
+
+  def begin(self, method: str, env_step: int) -> None:
+    self.close()
+    from tensorboardX import SummaryWriter  # a dependency of brax
+    self.writer = SummaryWriter(os.path.join(self.out, "tensorboard", method))
+
+  def write(self, result) -> None:
+    rows, step = result.rows, result.env_step
+    for col in io.COLUMNS[4:]:
+      values = [r[col] for r in rows if r[col] != ""]
+      if values:
+        self.writer.add_scalar(col, sum(values) / len(values), step)
+    for name, value in result.metrics.items():
+      mean = np.asarray(value, dtype=np.float64).mean(axis=0)
+      for i, v in np.ndenumerate(mean):
+        self.writer.add_scalar(name + "".join(f"/{j}" for j in i), float(v), step)
+    for r in rows:
+      if r["eval_success"] != "":
+        self.writer.add_scalar(f"eval_success/seed{r['seed']}", r["eval_success"], step)
+    self.writer.flush()
+
+  def close(self) -> None:
+    if self.writer is not None:
+      self.writer.close()
+      self.writer = None
+
+
+class Progress:
+  """A tqdm bar per method with the latest S_E, the last chunk's mode shares and env steps/s;
+  without the bar (``enabled=False``) the same as one line per chunk through ``log``."""
+
+  def __init__(self, plan, enabled: bool = True, log=print):
+    self.plan, self.enabled, self.log, self.bar = plan, enabled, log, None
+
+  def begin(self, method: str, env_step: int) -> None:
+    self.close()
+    if self.enabled:
+      from tqdm import tqdm
+      num_envs = self.plan.configs[method].num_envs
+      self.bar = tqdm(total=self.plan.spec.steps, initial=env_step // num_envs,
+                      desc=f"{self.plan.task} {method}", unit="step", dynamic_ncols=True,
+                      smoothing=0.1)
+
+  def write(self, result) -> None:
+    rows = result.rows
+    s_e = sum(r["eval_success"] or 0.0 for r in rows) / len(rows)
+    shares = {m: sum(r[f"steps_{m}"] for r in rows) for m in hierarchy.MODES}
+    total = max(sum(shares.values()), 1)
+    status = (f"S_E {s_e:.2f} | " + " ".join(f"{m} {shares[m] / total:.0%}"
+                                              for m in hierarchy.MODES)
+              + f" | {result.rate:.0f} env/s")
+    if self.bar is not None:
+      self.bar.set_postfix_str(status, refresh=False)
+      self.bar.update(self.plan.spec.chunk)
+    else:
+      self.log(f"{result.method} step {result.step}/{self.plan.spec.steps}: {status}")
+
+  def close(self) -> None:
+    if self.bar is not None:
+      self.bar.close()
+      self.bar = None

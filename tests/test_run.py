@@ -1,0 +1,185 @@
+"""The run library (issue 11): one way to override, config.json as the source of truth, sinks
+that get every metric, and an old run folder (made before a preset default changed) that still
+resumes, plots and renders."""
+
+import json
+import os
+
+import pytest
+
+from experiments import cli
+from nonmono_jax import config as config_lib
+from nonmono_jax import io, methods, plan as plan_lib, run, sinks, td3
+from tests_support import TINY_OVERRIDES, TINY_RUN, TINY_SIZE
+
+
+# --- one way to override ------------------------------------------------------------------------
+
+def test_a_dotted_path_changes_that_field_and_keeps_its_neighbours():
+  base = methods.make_config("ours", "AntFall")
+  config = config_lib.override(base, {"top.horizon": 100, "middle.target_smoothing": True})
+  assert config.top.horizon == 100 and config.middle.target_smoothing
+  assert config.top.alpha == base.top.alpha == (-0.2, -0.2, 0.7)  # not wiped by "top.*"
+  assert config.middle.hidden == base.middle.hidden
+  assert config_lib.differences(base, config) == ["top.horizon", "middle.target_smoothing"]
+  # Fields checked together change together; lists become tuples.
+  config = config_lib.override(base, {"c": 5, "top.alpha": [0, 0.4, 0.7]})
+  assert config.c == 5 and config.top.alpha == (0.0, 0.4, 0.7)
+  # A whole value, then the paths under it; a later layer's whole value drops earlier paths.
+  small = td3.TD3Config(hidden=(8,), batch_size=4)
+  config = config_lib.override(base, {"low": small, "low.batch_size": 2})
+  assert config.low.hidden == (8,) and config.low.batch_size == 2
+  assert config_lib.merge({"low.hidden": (64,)}, {"low": small}) == {"low": small}
+  assert methods.make_config("hiro", "PointMaze", low=small).low == small
+
+
+@pytest.mark.parametrize("overrides,message", [
+    ({"top.nope": 1}, "unknown TopConfig field 'top.nope'"),
+    ({"horizon": 3}, "unknown AgentConfig field 'horizon'"),
+    ({"low.lr_actor": 2.0}, "low.lr_actor must be in (0, 1]"),
+    ({"top.ppo.lr_actor": float("inf")}, "top.ppo.lr_actor must be a finite number"),
+    ({"c.x": 1}, "c is not a config with fields"),
+])
+def test_a_bad_override_names_the_full_dotted_field(overrides, message):
+  with pytest.raises(ValueError) as e:
+    methods.make_config("ours", "PointMaze", overrides)
+  assert message in str(e.value)
+
+
+def test_config_json_inverts_for_every_method_task_and_preset():
+  for preset in methods.PRESETS:
+    for task in methods.TASKS:
+      for method in methods.METHODS:
+        config, _ = methods.make_preset(preset, method, task)
+        saved = json.loads(json.dumps(io.to_jsonable(config)))
+        assert config_lib.config_from_dict(saved, config_lib.AgentConfig()) == config
+        assert not config_lib.missing_fields(saved, config)
+
+
+def test_the_command_and_the_library_build_the_same_plan(tmp_path):
+  args = cli.make_parser("PointMaze").parse_args(TINY_RUN + ["--method", "ours", "hiro"])
+  by_flags = cli.plan_from_args("PointMaze", args)
+  by_library = run.new_run("PointMaze", ["ours", "hiro"], preset="quick", run=TINY_SIZE,
+                           overrides=TINY_OVERRIDES)
+  assert by_flags.configs == by_library.configs and by_flags.spec == by_library.spec
+  assert by_library.configs["ours"].low.buffer_size == 800  # sized for the run's 800 steps
+
+
+# --- sinks --------------------------------------------------------------------------------------
+
+class _Recorder:
+  def __init__(self):
+    self.calls = []
+
+  def begin(self, method, env_step):
+    self.calls.append(("begin", method, env_step))
+
+  def write(self, result):
+    self.calls.append(("write", result.method, result.step, sorted(result.metrics)))
+
+  def close(self):
+    self.calls.append(("close",))
+
+
+def test_sinks_are_closed_together_whatever_ends_the_block():
+  a, b = _Recorder(), _Recorder()
+  with pytest.raises(RuntimeError):
+    with sinks.closing([a, b]):
+      raise RuntimeError("a NaN, a time limit, Ctrl-C")
+  assert a.calls == b.calls == [("close",)]
+
+
+# --- an old run folder ----------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def old_run(tmp_path_factory):
+  """A tiny run of ours stopped by the time limit after 2 of its 4 chunks, made by the library
+  with a recorder sink that sees every chunk (the tests then change a preset default)."""
+  out = str(tmp_path_factory.mktemp("old") / "run")
+  plan = run.new_run("PointMaze", ["ours"], preset="quick", out=out, run=TINY_SIZE,
+                     overrides=TINY_OVERRIDES)
+  recorder, results = _Recorder(), []
+  clock = run.Clock()
+  clock.allows = lambda chunk_s: len(results) < 2
+  with run.open_folder(plan):
+    outputs = [sinks.MetricsCsv(out), sinks.JsonLines(out), recorder]
+    with pytest.raises(run.TimeLimit), sinks.closing(outputs):
+      for result in run.run_method(plan, "ours", outputs, clock):
+        results.append(result)
+  return out, recorder, results
+
+
+def test_every_metric_reaches_the_json_lines_file(old_run):
+  out, recorder, results = old_run
+  assert [c[0] for c in recorder.calls] == ["begin", "write", "write", "close"]
+  assert [r.step for r in results] == [200, 400]
+  with open(os.path.join(out, "metrics.jsonl")) as f:
+    records = [json.loads(line) for line in f]
+  assert len(records) == 2 * 2  # seeds x chunks
+  names = set(results[0].metrics)
+  assert {"low/critic_loss", "count/TD3", "reward"} <= names
+  for record in records:
+    assert names <= set(record) and set(io.COLUMNS) <= set(record)
+  assert [r["seed"] for r in records] == [0, 1, 0, 1]
+  assert records[2]["count/TD3"] == results[1].metrics["count/TD3"][0]
+
+
+@pytest.fixture
+def preset_changed(monkeypatch):
+  """Today's preset of ours has another S_O during the starting mode (0.8) than the one the
+  run was made with (0.9)."""
+  monkeypatch.setitem(methods.METHOD_OVERRIDES, "ours", {**methods.METHOD_OVERRIDES["ours"],
+                                                        "top.s_o_start": 0.8})
+
+
+def test_an_old_run_folder_resumes_plots_and_renders_with_a_warning(old_run, preset_changed,
+                                                                    tmp_path, capsys):
+  from experiments import plot, render
+
+  out = os.path.join(tmp_path, "run")
+  import shutil
+  shutil.copytree(old_run[0], out)
+  # The folder as an older version wrote it: overrides nested, a field the code added since.
+  path = os.path.join(out, "config.json")
+  payload = io.read_json(path)
+  payload["overrides"] = {"top": {"starting_steps": 100}, **{
+      k: v for k, v in payload["overrides"].items() if k != "top.starting_steps"}}
+  del payload["configs"]["ours"]["eval_target_networks"]
+  io.write_json(path, payload)
+  plan = run.load_run(out)
+  assert plan.configs["ours"].top.s_o_start == 0.9  # config.json's, not today's 0.8
+  assert any("top.s_o_start 0.9 (today 0.8)" in w for w in plan.warnings)
+  assert any("has no eval_target_networks" in w for w in plan.warnings)
+  capsys.readouterr()
+  assert cli.main("PointMaze", ["--resume", out, "--no-progress"]) == 0
+  got = capsys.readouterr()
+  assert "ours: resumed from step 400" in got.out
+  assert "warning:" in got.err and "top.s_o_start 0.9 (today 0.8)" in got.err
+  rows = io.MetricsFile(os.path.join(out, "metrics.csv")).read()
+  assert [int(r["env_step"]) for r in rows] == [200, 200, 400, 400, 600, 600, 800, 800]
+  with open(os.path.join(out, "metrics.jsonl")) as f:
+    assert [json.loads(line)["env_step"] for line in f] == [200, 200, 400, 400, 600, 600,
+                                                             800, 800]
+  assert plot.main([out, "--out", str(tmp_path / "fig")]) == 0
+  roll = render.rollout(out, "ours", 1)
+  assert roll["step"] == 800 and roll["pos"].shape == (101, 3) and roll["warnings"]
+
+
+def test_a_json_lines_file_drops_what_follows_the_checkpoint_on_resume(tmp_path):
+  path = tmp_path / "metrics.jsonl"
+  lines = [{"method": "ours", "env_step": 200}, {"method": "hiro", "env_step": 600},
+           {"method": "ours", "env_step": 400}]
+  path.write_text("".join(json.dumps(r) + "\n" for r in lines) + '{"method": "ours", "env')
+  sinks.JsonLines(str(tmp_path)).begin("ours", 200)
+  assert [json.loads(l) for l in path.read_text().splitlines()] == lines[:2]
+
+
+def test_a_config_json_that_today_cannot_rebuild_still_loads(old_run, tmp_path):
+  out = str(tmp_path / "run")
+  os.makedirs(out)
+  payload = io.read_json(os.path.join(old_run[0], "config.json"))
+  payload["overrides"]["a_field_since_removed"] = 1
+  io.write_json(os.path.join(out, "config.json"), payload)
+  plan = plan_lib.load_run(out)
+  assert plan.configs["ours"] == run.load_run(old_run[0]).configs["ours"]
+  assert any("cannot be rebuilt from today's presets" in w for w in plan.warnings)
