@@ -6,7 +6,7 @@ import nbformat
 import pytest
 from nbclient import NotebookClient
 
-from tests_support import CACHE_DIR, ROOT, TINY_RUN
+from tests_support import CACHE_DIR, ROOT, TINY_OVERRIDES, TINY_SIZE
 NOTEBOOKS = os.path.join(ROOT, "notebooks")
 
 
@@ -33,7 +33,7 @@ def quickstart(tmp_path_factory):
   mp = pytest.MonkeyPatch()
   try:
     nb = _execute("quickstart.ipynb", f'TASK = "PointMaze"\nMETHODS = ["ours", "hiro"]\n'
-                  f'OUT = {out!r}\nEXTRA = {TINY_RUN!r}', mp)
+                  f'OUT = {out!r}\nRUN = {TINY_SIZE!r}\nOVERRIDES = {TINY_OVERRIDES!r}', mp)
   finally:
     mp.undo()
   return nb, out
