@@ -11,6 +11,9 @@ import sys
 import jax
 
 RESULTS = os.path.join(os.path.dirname(__file__), "results")
+# Dotted overrides that time every step with all modes live: no warm-up, no starting mode,
+# evaluation never (timed apart).
+ALL_MODES_LIVE = {"warmup_steps": 0, "eval_every": 10**9, "top.starting_steps": 0}
 
 
 def machine() -> dict:

@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import argparse
 import collections
-import dataclasses
 import glob
 import os
 import re
@@ -31,6 +30,7 @@ from jax.profiler import ProfileData
 
 import envs
 from benchmarks import common
+from benchmarks.common import ALL_MODES_LIVE
 from nonmono_jax import methods, train
 
 _STRIP = re.compile(r"jit\(local_chunk\)/|while/body/|closed_call/|vmap\(\)/|branch_\d_fun/"
@@ -40,12 +40,8 @@ _STRIP = re.compile(r"jit\(local_chunk\)/|while/body/|closed_call/|vmap\(\)/|bra
 def make_point_trainer(env_name, method, seeds, chunk, hidden=None):
   """The trainer of ``train_throughput`` at the task's preset (optionally other TD3 layers)."""
   env = envs.make(env_name, episode_length=100 if env_name.startswith("Point") else 1000)
-  base = methods.make_config(method, env_name)
-  if hidden:
-    base = dataclasses.replace(base, low=dataclasses.replace(base.low, hidden=tuple(hidden)),
-                               middle=dataclasses.replace(base.middle, hidden=tuple(hidden)))
-  config = dataclasses.replace(base, warmup_steps=0, eval_every=10**9,
-                               top=dataclasses.replace(base.top, starting_steps=0))
+  layers = {"low.hidden": tuple(hidden), "middle.hidden": tuple(hidden)} if hidden else {}
+  config = methods.make_config(method, env_name, {**ALL_MODES_LIVE, **layers})
   return train.make_trainer(env, config, num_seeds=seeds, chunk_steps=chunk)
 
 

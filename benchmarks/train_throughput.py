@@ -28,14 +28,15 @@ last write sets ``"complete": true``) and prints a table.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import time
 
 import jax
 
 import envs
 from benchmarks import common
+from benchmarks.common import ALL_MODES_LIVE
 from nonmono_jax import methods, train
+from nonmono_jax.config import override
 
 
 def measure(env_name: str, method: str, seeds: int, num_envs: int, chunk: int,
@@ -46,8 +47,7 @@ def measure(env_name: str, method: str, seeds: int, num_envs: int, chunk: int,
     spec = methods.RunSpec(steps=chunk, seeds=seeds, episode_length=1000, chunk=chunk,
                            checkpoint_every=chunk)
     base, _ = methods.widen(base, spec, num_envs, grad_steps)
-  config = dataclasses.replace(base, warmup_steps=0, num_envs=num_envs, eval_every=10**9,
-                               top=dataclasses.replace(base.top, starting_steps=0))
+  config = override(base, {**ALL_MODES_LIVE, "num_envs": num_envs})
   trainer = train.make_trainer(env, config, num_seeds=seeds, chunk_steps=chunk)
   states = jax.block_until_ready(trainer.init(jax.random.PRNGKey(0)))
   t0 = time.perf_counter()
