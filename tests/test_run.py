@@ -132,6 +132,37 @@ def preset_changed(monkeypatch):
                                                         "top.s_o_start": 0.8})
 
 
+def _event_tags(folder) -> set:
+  """The scalar tags of the TensorBoard event files in ``folder`` (TFRecord framing: length,
+  its CRC, the Event, its CRC)."""
+  import struct
+
+  from tensorboardX.proto import event_pb2
+
+  tags = set()
+  for name in os.listdir(folder):
+    with open(os.path.join(folder, name), "rb") as f:
+      data = f.read()
+    pos = 0
+    while pos < len(data):
+      (length,) = struct.unpack("<Q", data[pos:pos + 8])
+      event = event_pb2.Event.FromString(data[pos + 12:pos + 12 + length])
+      tags |= {v.tag for v in event.summary.value}
+      pos += 12 + length + 4
+  return tags
+
+
+def test_every_metric_reaches_tensorboard(old_run, tmp_path):
+  _, _, results = old_run
+  board = sinks.TensorBoard(str(tmp_path))
+  with sinks.closing([board]):
+    board.begin("ours", 0)
+    board.write(results[-1])
+  tags = _event_tags(tmp_path / "tensorboard" / "ours")
+  assert set(results[-1].metrics) <= tags
+  assert {"eval_success", "low_critic_loss", "eval_success/seed1"} <= tags
+
+
 def test_an_old_run_folder_resumes_plots_and_renders_with_a_warning(old_run, preset_changed,
                                                                     tmp_path, capsys):
   from experiments import plot, render
