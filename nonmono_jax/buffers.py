@@ -31,8 +31,16 @@ class ReplayBuffer:
     return jax.tree.leaves(self.data)[0].shape[0]
 
 
+def template(fn, *args, lead: tuple = ()) -> Any:
+  """Zeros shaped like ``fn(*args)`` with ``lead`` axes in front, from ``jax.eval_shape``
+  (nothing is computed; ``args`` may be ``jax.ShapeDtypeStruct``s)."""
+  shapes = jax.eval_shape(fn, *args)
+  return jax.tree.map(lambda s: jp.zeros(tuple(lead) + s.shape, s.dtype), shapes)
+
+
 def init(example: Any, capacity: int) -> ReplayBuffer:
-  """An empty buffer for transitions shaped like ``example`` (one transition, no batch axis)."""
+  """An empty buffer for transitions shaped like ``example`` (one transition, no batch axis;
+  arrays or ``jax.ShapeDtypeStruct``s)."""
   if capacity < 1:
     raise ValueError(f"capacity must be >= 1, got {capacity}")
   data = jax.tree.map(lambda x: jp.zeros((capacity,) + jp.shape(x), jp.result_type(x)), example)

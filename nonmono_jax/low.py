@@ -13,7 +13,7 @@ from typing import Callable
 import jax
 import jax.numpy as jp
 
-from nonmono_jax import buffers, hierarchy, td3
+from nonmono_jax import buffers, hierarchy, learning, td3
 
 
 @dataclasses.dataclass(frozen=True)
@@ -30,10 +30,6 @@ def make_low(obs_size: int, action_size: int, action_limit, config: td3.TD3Confi
   k = hierarchy.GOAL_SIZE
   learner = td3.make_td3(obs_size, k, action_size, action_limit, config)
   lim = jp.broadcast_to(jp.asarray(action_limit, jp.float32), (action_size,))
-  example = td3.Transition(obs=jp.zeros(obs_size), context=jp.zeros(k),
-                           action=jp.zeros(action_size), reward=jp.zeros(()),
-                           next_obs=jp.zeros(obs_size), next_context=jp.zeros(k),
-                           done=jp.zeros(()))
 
   def act(params, obs, goal, key, warm):
     """The behaviour action: uniform during warm-up, else pi_L plus Gaussian noise."""
@@ -56,8 +52,12 @@ def make_low(obs_size: int, action_size: int, action_limit, config: td3.TD3Confi
       n = t * updates + i  # the update counter: the delayed actor's clock
       return learner.update(state, batch, ku, n % config.policy_delay == 0)
 
-    state, metrics = jax.lax.scan(one, state, jp.arange(updates))
-    return state, jax.tree.map(lambda m: m[-1], metrics)
+    return learning.repeat(one, state, updates)
 
-  return Low(td3=learner, init_buffer=lambda: buffers.init(example, config.buffer_size),
+  def init_buffer():
+    vec = lambda n: jax.ShapeDtypeStruct((n,), jp.float32)
+    example = jax.eval_shape(transition, vec(obs_size), vec(k), vec(action_size), vec(obs_size))
+    return buffers.init(example, config.buffer_size)
+
+  return Low(td3=learner, init_buffer=init_buffer,
              act=act, transition=transition, update=update)

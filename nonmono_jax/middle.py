@@ -29,7 +29,7 @@ import jax
 import jax.numpy as jp
 from flax import struct
 
-from nonmono_jax import buffers, hierarchy, ppo, relabel, td3
+from nonmono_jax import buffers, hierarchy, learning, ppo, relabel, td3
 from nonmono_jax.config import AgentConfig
 
 
@@ -46,18 +46,35 @@ class Segment:
   log_prob: jax.Array  # () log pi_PPO(ppo_action | s_0, target), for the Middle PPO
 
 
+@struct.dataclass
+class Explorer:
+  """The Middle PPO's learner and its rollout, (E, middle_ppo_every / c) per seed."""
+
+  learner: ppo.PPOState
+  rollout: ppo.Rollout
+
+
+@struct.dataclass
+class NoExplorer:
+  """The Middle PPO of a method without one (HIRO, Ref:Uniform): nothing."""
+
+
 @dataclasses.dataclass(frozen=True)
 class Middle:
   td3: td3.TD3
   ppo: ppo.PPO | None  # None where the method has no Middle PPO
   init_buffer: Callable[[], buffers.ReplayBuffer]
   init_rollout: Callable[[], ppo.Rollout]
+  init_explorer: Callable[[jax.Array, int], Explorer | NoExplorer]
   goal: Callable[..., tuple[jax.Array, jax.Array]]
   new_segment: Callable[..., Segment]
   record: Callable[..., Segment]
   close: Callable[..., tuple[dict, ppo.Rollout]]
+  store: Callable[..., Explorer | NoExplorer]
+  ppo_params: Callable[[Explorer | NoExplorer], dict | None]
+  value: Callable[..., jax.Array]
   td3_update: Callable[..., tuple[td3.TD3State, dict]]
-  ppo_update: Callable[..., tuple[ppo.PPOState, dict]]
+  ppo_update: Callable[..., tuple[Explorer, dict]]
   ppo_std: Callable[[jax.Array], jax.Array]
 
 
@@ -138,19 +155,43 @@ def make_middle(obs_size: int, action_size: int, target, config: AgentConfig,
     g = relabelled(seg, low_params, key) if at_store else seg.goal
     return pack(seg, g, episode_end)
 
-  def _example_close():
-    """Zero-filled (buffer item, rollout step) of ``close``'s shapes."""
-    zero_goal = jp.zeros(k)
-    return pack(new_segment(jp.zeros(obs_size), zero_goal, zero_goal, jp.zeros(())), zero_goal,
-                False)
+  vec = lambda n: jax.ShapeDtypeStruct((n,), jp.float32)
+  example_segment = jax.eval_shape(new_segment, vec(obs_size), vec(k), vec(k),
+                                   jax.ShapeDtypeStruct((), jp.float32))
 
   def init_buffer():
-    item, _ = _example_close()
+    item, _ = jax.eval_shape(pack, example_segment, vec(k), False)
     return buffers.init(item, config.middle.buffer_size)
 
   def init_rollout():
-    _, step = _example_close()
-    return jax.tree.map(lambda x: jp.zeros((n_rollout,) + x.shape, x.dtype), step)
+    return buffers.template(lambda *a: pack(*a)[1], example_segment, vec(k), False,
+                            lead=(n_rollout,))
+
+  def init_explorer(key, num_envs):
+    """The Middle PPO's learner (from ``key``) and an empty rollout per env, if it has one."""
+    if explorer is None:
+      return NoExplorer()
+    rollout = jax.vmap(lambda _: init_rollout())(jp.arange(num_envs))
+    return Explorer(learner=explorer.init(key), rollout=rollout)
+
+  def ppo_params(explorer_state):
+    """The Middle PPO's parameters for ``goal`` (None without a Middle PPO)."""
+    return None if explorer is None else explorer_state.learner.params
+
+  def store(explorer_state, t, steps):
+    """The segments' PPO steps (E, ...) into their rollout slot, the segment ending at t."""
+    if explorer is None:
+      return explorer_state
+    slot = (t // c) % n_rollout
+    rollout = jax.tree.map(lambda r, x: r.at[:, slot].set(x), explorer_state.rollout, steps)
+    return explorer_state.replace(rollout=rollout)
+
+  def value(td3_params, obs):
+    """V(s) = min(Q1', Q2')(s, target, pi'_M(s, target)) with the target networks."""
+    tgt = jp.broadcast_to(target, obs.shape[:-1] + target.shape)
+    targets = td3_params.replace(actor=td3_params.target_actor)
+    q = learner.q_values(td3_params.target_critic, obs, tgt, learner.act(targets, obs, tgt))
+    return q.min(axis=0)
 
   def td3_update(state: td3.TD3State, buffer, low_params, key, t):
     """``middle_updates`` TD3 updates; with ``"sample"`` relabelling each batch is relabelled
@@ -170,12 +211,15 @@ def make_middle(obs_size: int, action_size: int, target, config: AgentConfig,
       n = (t // c) * config.middle_updates + i
       return learner.update(state, batch, k3, n % cfg.policy_delay == 0)
 
-    state, metrics = jax.lax.scan(one, state, jp.arange(config.middle_updates))
-    return state, jax.tree.map(lambda m: m[-1], metrics)
+    return learning.repeat(one, state, config.middle_updates)
 
-  def ppo_update(state: ppo.PPOState, rollout: ppo.Rollout, t):
-    return explorer.update(state, rollout, ppo_std(t))
+  def ppo_update(explorer_state: Explorer, t):
+    """One Middle PPO update on the rollout, at the std of step t (reported as ``std``)."""
+    std = ppo_std(t)
+    new, m = explorer.update(explorer_state.learner, explorer_state.rollout, std)
+    return explorer_state.replace(learner=new), {**m, "std": std}
 
   return Middle(td3=learner, ppo=explorer, init_buffer=init_buffer, init_rollout=init_rollout,
-                goal=goal, new_segment=new_segment, record=record, close=close,
-                td3_update=td3_update, ppo_update=ppo_update, ppo_std=ppo_std)
+                init_explorer=init_explorer, goal=goal, new_segment=new_segment, record=record,
+                close=close, store=store, ppo_params=ppo_params, value=value, td3_update=td3_update,
+                ppo_update=ppo_update, ppo_std=ppo_std)

@@ -42,7 +42,7 @@ import jax.numpy as jp
 import optax
 from flax import struct
 
-from nonmono_jax import networks
+from nonmono_jax import learning, networks
 
 _RETURN_EPS = 1e-7  # the port's normaliser epsilon
 _LOG_2PI_E = math.log(2.0 * math.pi * math.e)
@@ -277,13 +277,11 @@ def make_ppo(obs_size: int, action_size: int, config: PPOConfig = PPOConfig(),
   def update(state: PPOState, batch: Rollout, std, loss_weights=None):
     if loss_weights is None:
       loss_weights = jp.ones(batch.reward.shape, jp.float32)
-    grad_fn = jax.grad(loss, has_aux=True)
 
     def epoch(carry, _):
-      params, opt_state = carry
-      grads, metrics = grad_fn(params, batch, std, loss_weights)
-      updates, opt_state = optimizer.update(grads, opt_state, params)
-      return (optax.apply_updates(params, updates), opt_state), metrics
+      params, opt_state, metrics = learning.gradient_step(loss, optimizer, *carry, batch, std,
+                                                          loss_weights)
+      return (params, opt_state), metrics
 
     (params, opt_state), metrics = jax.lax.scan(
         epoch, (state.params, state.opt_state), None, length=config.k_epochs)

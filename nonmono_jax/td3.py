@@ -26,7 +26,7 @@ import jax.numpy as jp
 import optax
 from flax import struct
 
-from nonmono_jax import networks
+from nonmono_jax import learning, networks
 
 
 @dataclasses.dataclass(frozen=True)
@@ -173,19 +173,17 @@ def make_td3(obs_size: int, context_size: int, action_size: int, action_scale,
     ``vmap`` over seeds the ``lax.cond`` stays a branch rather than a select.
     """
     p = state.params
-    (_, cm), grads = jax.value_and_grad(critic_loss, has_aux=True)(p.critic, p, batch, key)
-    updates, critic_opt_state = critic_opt.update(grads, state.critic_opt, p.critic)
-    p = p.replace(critic=optax.apply_updates(p.critic, updates))
-    state = state.replace(params=p, critic_opt=critic_opt_state)
+    critic, critic_opt_state, cm = learning.gradient_step(critic_loss, critic_opt, p.critic,
+                                                          state.critic_opt, p, batch, key)
+    state = state.replace(params=p.replace(critic=critic), critic_opt=critic_opt_state)
 
     def actor_step(state):
       p = state.params
-      (loss, _), grads = jax.value_and_grad(actor_loss, has_aux=True)(p.actor, p, batch)
-      updates, opt = actor_opt.update(grads, state.actor_opt, p.actor)
-      actor = optax.apply_updates(p.actor, updates)
+      actor, opt, am = learning.gradient_step(actor_loss, actor_opt, p.actor, state.actor_opt,
+                                              p, batch)
       p = p.replace(actor=actor, target_actor=polyak(p.target_actor, actor, config.tau),
                     target_critic=polyak(p.target_critic, p.critic, config.tau))
-      return state.replace(params=p, actor_opt=opt), loss
+      return state.replace(params=p, actor_opt=opt), am["actor_loss"]
 
     def skip(state):
       return state, jp.zeros((), jp.float32)

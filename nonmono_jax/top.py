@@ -23,7 +23,7 @@ import jax
 import jax.numpy as jp
 from flax import struct
 
-from nonmono_jax import hierarchy, ppo
+from nonmono_jax import buffers, hierarchy, ppo
 from nonmono_jax.config import TopConfig
 
 
@@ -80,10 +80,12 @@ def make_top(obs_size: int, target, config: TopConfig) -> Top:
     return step, {"s_o_m": s_o_m, "done_m": done_m, "r_final": r_final}
 
   def init_rollout():
-    h = Horizon(obs=jp.zeros(obs_size + k), mode=jp.zeros((), jp.int32), log_prob=jp.zeros(()),
-                reward=jp.zeros(()), done_count=jp.zeros(()), count=jp.zeros(()))
-    step, _ = close(h, False, False)
-    return jax.tree.map(lambda x: jp.zeros((config.rollout_length,) + x.shape, x.dtype), step)
+    scalar = jax.ShapeDtypeStruct((), jp.float32)
+    h = Horizon(obs=jax.ShapeDtypeStruct((obs_size + k,), jp.float32),
+                mode=jax.ShapeDtypeStruct((), jp.int32), log_prob=scalar, reward=scalar,
+                done_count=scalar, count=scalar)
+    return buffers.template(lambda h: close(h, False, False)[0], h,
+                            lead=(config.rollout_length,))
 
   def update(state: ppo.PPOState, rollout: ppo.Rollout, s_e):
     """Top PPO on the rollout, with the S_E loss modification unless it is switched off."""

@@ -8,10 +8,12 @@
 
 Inside a chunk the global step ``t`` is the scan's input and is not batched over seeds, so
 every horizon gate in ``agent.step`` stays a real branch (SPEC section 6). ``metrics`` are per
-seed, reduced over the chunk: a level's metrics (``low/...``, ``top/...``) are averaged over the
-steps where that level updated (``<level>/updated`` counts them), ``count/<mode>`` (env steps
-run in each mode) and ``decisions/<mode>`` (Middle decisions) are summed, the rest are
-averaged over all steps.
+seed, reduced over the chunk as each declares (``metrics.Metric``): a level's metrics
+(``low/critic_loss``, ``top/loss``, ``horizon/p_TD3``, ...) are averaged over the steps where
+that level updated (``<level>/updated`` counts them), ``count/<mode>`` (env steps run in each
+mode), ``decisions/<mode>`` (Middle decisions) and ``switch/switches`` are summed, the rest
+(``reward``, ``low/reward``, ...) are averaged over all steps. Every metric the step computes
+is in the reduced dict.
 
 ``chunk`` donates its input states (the buffers are updated in place): pass it states from
 ``init``, a previous ``chunk`` or a checkpoint, and do not reuse them after the call.
@@ -31,6 +33,7 @@ import jax.numpy as jp
 from jax.sharding import Mesh, NamedSharding, PartitionSpec as P
 
 from nonmono_jax import agent as agent_lib
+from nonmono_jax import metrics as metrics_lib
 
 
 @dataclasses.dataclass(frozen=True)
@@ -45,19 +48,8 @@ class Trainer:
 
 
 def reduce_chunk(metrics: dict) -> dict:
-  """Per-step metrics (leading time axis) -> one value per seed (see the module doc)."""
-  out = {}
-  for name, m in metrics.items():
-    level = name.split("/")[0]
-    flag = metrics.get(f"{level}/updated")
-    if (name.startswith(("count/", "decisions/")) or name.endswith("/updated")
-        or name == "switch/switches"):
-      out[name] = m.sum(axis=0)
-    elif flag is not None:
-      out[name] = (m * flag).sum(axis=0) / jp.maximum(flag.sum(axis=0), 1.0)
-    else:
-      out[name] = m.mean(axis=0)
-  return out
+  """Per-step ``Metric``s (leading time axis) -> one array per name and seed (module doc)."""
+  return metrics_lib.reduce(metrics, axis=0)
 
 
 def make_trainer(env, config: agent_lib.AgentConfig, num_seeds: int, chunk_steps: int,

@@ -13,8 +13,9 @@ import pytest
 
 import envs
 from nonmono_jax import agent as agent_lib
-from nonmono_jax import hierarchy, homeostasis, methods, ppo, td3, train
+from nonmono_jax import hierarchy, homeostasis, methods, modes, ppo, td3, train
 from nonmono_jax.config import AgentConfig, TopConfig
+from nonmono_jax.switch import TriggerState
 
 C, HORIZON, TOP_EVERY, MID_PPO_EVERY = 5, 25, 50, 15
 WARMUP, STARTING, STEPS, EPISODE = 100, 100, 500, 100
@@ -51,9 +52,10 @@ class Run:
 
     def body(st, t):
       mode = st.mode
-      left = st.trigger.explore_left if st.trigger is not None else jp.zeros_like(mode)
+      trigger = isinstance(st.chooser, TriggerState)
+      left = st.chooser.explore_left if trigger else jp.zeros_like(mode)
       st, m = jax.vmap(ag.step, in_axes=(0, None))(st, t)
-      return st, (m, mode, left)
+      return st, ({k: v.value for k, v in m.items()}, mode, left)
 
     @jax.jit
     def chunk(states, t0):  # one compiled program of WARMUP steps, called STEPS / WARMUP times
@@ -125,15 +127,15 @@ def test_buffers_and_update_clocks(runs, method):
   np.testing.assert_array_equal(r.end.s_e, m["eval/success"][-1])
   if r.config.uses_middle_ppo:
     np.testing.assert_array_equal(m["middle_ppo/updated"].sum(0), ticks(MID_PPO_EVERY))
-    assert not _same(r.mid.middle_ppo.params, r.end.middle_ppo.params)
+    assert not _same(r.mid.middle_ppo.learner.params, r.end.middle_ppo.learner.params)
   else:
-    assert r.end.middle_ppo is None and "middle_ppo/updated" not in m
+    assert jax.tree.leaves(r.end.middle_ppo) == [] and "middle_ppo/updated" not in m
   if r.config.switch == "top":
     np.testing.assert_array_equal(m["top/updated"].sum(0), ticks(TOP_EVERY))
     np.testing.assert_array_equal(m["horizon/updated"].sum(0), STEPS // HORIZON)
-    assert not _same(r.mid.top.params, r.end.top.params)
+    assert not _same(r.mid.chooser.learner.params, r.end.chooser.learner.params)
   else:
-    assert r.end.top is None and "top/updated" not in m
+    assert not isinstance(r.end.chooser, modes.TopState) and "top/updated" not in m
 
 
 def test_hiro_never_leaves_td3(runs):
@@ -153,7 +155,7 @@ def test_ours_starts_in_random_then_the_top_chooses(runs):
   assert np.all(np.nonzero(changed)[0] % HORIZON == HORIZON - 1)
   # Top transitions: the rollout holds the latest horizons, in time order, with their modes.
   last = r.modes[STEPS - TOP_EVERY::HORIZON]  # (rollout, seeds, envs)
-  np.testing.assert_array_equal(np.moveaxis(np.asarray(r.end.top_rollout.action), 2, 0), last)
+  np.testing.assert_array_equal(np.moveaxis(np.asarray(r.end.chooser.rollout.action), 2, 0), last)
 
 
 def _explore_runs(modes, explore):
@@ -286,9 +288,16 @@ def test_trainer_chunks_match_the_plain_scan(runs):
   r = runs("ours")
   trainer = train.make_trainer(r.env, r.config, num_seeds=SEEDS, chunk_steps=250)
   states = jax.jit(jax.vmap(trainer.agent.init))(r.keys)  # chunk donates: distinct buffers
-  for t0 in (0, 250):
-    states, metrics = trainer.chunk(states, t0)
+  states, first = trainer.chunk(states, 0)
+  states, metrics = trainer.chunk(states, 250)
   assert metrics["success"].shape == (SEEDS,)
+  assert set(metrics) == set(r.metrics)  # every metric of the step reaches the chunk's output
+  for name in ("low/q", "middle/target_q", "middle_ppo/approx_kl", "middle_ppo/std",
+               "top/clip_fraction", "top/entropy", "horizon/s_o_m", "horizon/r_final"):
+    assert name in metrics, name
+  # low/reward: the mean over all steps, warm-up included (not only where the Low updated)
+  np.testing.assert_allclose(first["low/reward"], r.metrics["low/reward"][:250].mean(0),
+                             rtol=1e-5)
   np.testing.assert_allclose(states.env.obs, r.end.env.obs, rtol=1e-5, atol=1e-5)
   np.testing.assert_array_equal(states.mode_steps, r.end.mode_steps)
   # Chunk metrics: counts summed, level metrics averaged where the level updated.

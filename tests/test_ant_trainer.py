@@ -34,6 +34,6 @@ def test_ours_trains_on_ant_push():
   for name in ("low/updated", "middle/updated", "middle_ppo/updated", "top/updated",
                "eval/updated"):
     assert np.all(m[name] > 0), name
-  for leaf in jax.tree.leaves((states.low.params, states.top.params, m)):
+  for leaf in jax.tree.leaves((states.low.params, states.chooser.learner.params, m)):
     assert np.all(np.isfinite(np.asarray(leaf)))
   assert np.all(np.abs(np.asarray(states.goal)[..., 2]) <= 0.5)  # the ant's z goal range

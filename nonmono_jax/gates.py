@@ -1,0 +1,25 @@
+"""Schedule gates: ``lax.cond`` on the unbatched global step, zeros where the branch is skipped.
+
+The predicate comes from the trainer's step counter, which is not batched over seeds, so under
+the seed ``vmap`` the ``cond`` stays a real branch (SPEC section 6; ``tests/test_agent.py``
+counts them in the jaxpr).
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jp
+
+
+def gated(pred, fn, operand):
+  """``lax.cond(pred, fn, skip, operand)``: skip returns ``operand`` and zero outputs.
+
+  ``fn(operand) -> (operand', out)``; the zeros of ``out`` take its shapes from
+  ``jax.eval_shape``.
+  """
+  _, shapes = jax.eval_shape(fn, operand)
+
+  def skip(x):
+    return x, jax.tree.map(lambda s: jp.zeros(s.shape, s.dtype), shapes)
+
+  return jax.lax.cond(pred, fn, skip, operand)
