@@ -55,14 +55,27 @@ REQUIRED = ("task", "method", "seed", "env_step", "eval_success", "eval_return",
 
 def load(dirs) -> list[dict]:
   """Every folder's rows, all checked before anything is drawn; raises ValueError naming the
-  file and line. A half-written last line (a run killed mid-row) is skipped, as resume does."""
+  file and line. A half-written last line (a run killed mid-row) is skipped, as resume does.
+
+  A folder is a run folder (with ``metrics.csv``) or holds run folders at any depth (a
+  results tree such as ``results/pointpush/<method>/``)."""
   rows = []
   for d in dirs:
-    path = os.path.join(d, "metrics.csv")
-    if not os.path.isfile(path):
-      raise ValueError(f"{path} not found (is {d} a run folder?)")
-    rows.extend(_read(path))
+    for path in _metrics_files(d):
+      rows.extend(_read(path))
   return rows
+
+
+def _metrics_files(d: str) -> list[str]:
+  """``d/metrics.csv``, or else every ``metrics.csv`` below ``d`` (sorted)."""
+  path = os.path.join(d, "metrics.csv")
+  if os.path.isfile(path):
+    return [path]
+  found = sorted(os.path.join(root, "metrics.csv") for root, _, files in os.walk(d)
+                 if "metrics.csv" in files)
+  if not found:
+    raise ValueError(f"{path} not found (is {d} a run folder?)")
+  return found
 
 
 def _read(path: str) -> list[dict]:

@@ -97,3 +97,14 @@ def test_iqm_curve_of_a_method(runs):
   assert list(steps) == [200, 300, 400] and n == 5
   np.testing.assert_allclose(point, [0.1 / 3, 1.9 / 3, 2.9 / 3])
   assert (lower <= point).all() and (point <= upper).all() and (lower < upper).all()
+
+
+def test_a_results_tree_of_run_folders_loads_every_run(tmp_path):
+  # results/<task>/<method>/metrics.csv, as the study lays its runs out
+  _write(tmp_path / "pointmaze" / "ours", ["ours"])
+  _write(tmp_path / "pointmaze" / "hiro", ["hiro"])
+  rows = plot.load([str(tmp_path / "pointmaze")])
+  assert {r["method"] for r in rows} == {"ours", "hiro"}
+  assert len(rows) == len(STEPS) * (len(S_E["ours"]) + len(S_E["hiro"]))
+  with pytest.raises(ValueError, match="not found"):
+    plot.load([str(tmp_path / "empty")])
