@@ -4,8 +4,6 @@ One small program per switch kind (HIRO, ours, Ref:Uniform, Ref:PPO), each compi
 session; the ablations differ from ours only in the Top's reward and loss (``test_top.py``).
 """
 
-import dataclasses
-
 import jax
 import jax.numpy as jp
 import numpy as np
@@ -14,6 +12,7 @@ import pytest
 import envs
 from nonmono_jax import agent as agent_lib
 from nonmono_jax import hierarchy, homeostasis, methods, modes, ppo, td3, train
+from nonmono_jax import config as config_lib
 from nonmono_jax.config import AgentConfig, TopConfig
 from nonmono_jax.switch import TriggerState
 
@@ -26,19 +25,19 @@ _small = td3.TD3Config(hidden=(16, 16), batch_size=8, buffer_size=2000)
 _ppo = ppo.PPOConfig(hidden=(16, 16))
 
 
-def small_config(method: str, **overrides) -> AgentConfig:
-  base = methods.make_config(method, "PointPush")
-  fields = dict(
-      c=C, warmup_steps=WARMUP, middle_ppo_every=MID_PPO_EVERY, eval_every=100,
-      eval_episodes=2, num_envs=ENVS,
-      top=dataclasses.replace(base.top, horizon=HORIZON, train_every=TOP_EVERY,
-                              starting_steps=STARTING,
-                              ppo=dataclasses.replace(_ppo, discrete=True)),
-      homeostasis=dataclasses.replace(base.homeostasis, rho=0.05, explore_steps=EXPLORE, k=C),
-      low=_small, middle=dataclasses.replace(_small, target_smoothing=base.middle.target_smoothing),
-      middle_ppo=_ppo)
-  fields.update(overrides)
-  return dataclasses.replace(base, **fields)
+SMALL = {
+    "c": C, "warmup_steps": WARMUP, "middle_ppo_every": MID_PPO_EVERY, "eval_every": 100,
+    "eval_episodes": 2, "num_envs": ENVS, "top.horizon": HORIZON, "top.train_every": TOP_EVERY,
+    "top.starting_steps": STARTING, "top.ppo": _ppo, "top.ppo.discrete": True,
+    "homeostasis.rho": 0.05, "homeostasis.explore_steps": EXPLORE, "homeostasis.k": C,
+    "low": _small, "middle_ppo": _ppo}
+
+
+def small_config(method: str, overrides=None) -> AgentConfig:
+  """The method's PointPush config at a test's size; the Middle keeps the method's smoothing."""
+  smoothing = methods.make_config(method, "PointPush").middle.target_smoothing
+  return methods.make_config(method, "PointPush", config_lib.merge(
+      SMALL, {"middle": _small, "middle.target_smoothing": smoothing}, overrides or {}))
 
 
 class Run:

@@ -4,8 +4,6 @@ Tiny networks and a 20-step episode; warm-up ends inside the run, so every gate 
 (Top horizon, Middle PPO, Top PPO, evaluation over MJX episodes) compiles and runs once.
 """
 
-import dataclasses
-
 import jax
 import numpy as np
 import pytest
@@ -19,12 +17,10 @@ def test_ours_trains_on_ant_push():
   env = envs.make("AntPush", episode_length=20)
   small = td3.TD3Config(hidden=(16, 16), batch_size=4, buffer_size=100)
   net = ppo.PPOConfig(hidden=(16,))
-  base = methods.make_config("ours", "AntPush")
-  config = dataclasses.replace(
-      base, warmup_steps=10, eval_every=20, eval_episodes=1, low=small,
-      middle=dataclasses.replace(small, target_smoothing=False), middle_ppo=net,
-      top=dataclasses.replace(base.top, horizon=10, train_every=20, starting_steps=0,
-                              ppo=dataclasses.replace(net, discrete=True)))
+  config = methods.make_config("ours", "AntPush", {
+      "warmup_steps": 10, "eval_every": 20, "eval_episodes": 1, "low": small, "middle": small,
+      "middle.target_smoothing": False, "middle_ppo": net, "top.horizon": 10,
+      "top.train_every": 20, "top.starting_steps": 0, "top.ppo": net, "top.ppo.discrete": True})
   trainer = train.make_trainer(env, config, num_seeds=2, chunk_steps=20)
   states = trainer.init(jax.random.PRNGKey(0))
   states, m = trainer.chunk(states, 0)

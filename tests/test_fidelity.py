@@ -59,10 +59,9 @@ def test_policy_delay_one_updates_the_actor_on_every_update():
 
 
 def _middle(**fields):
-  config = methods.make_config("ours", "PointPush")
-  config = dataclasses.replace(
-      config, low=SMALL, middle=dataclasses.replace(SMALL, target_smoothing=False),
-      middle_ppo=dataclasses.replace(config.middle_ppo, hidden=(8,)), **fields)
+  config = methods.make_config("ours", "PointPush", {
+      "low": SMALL, "middle": SMALL, "middle.target_smoothing": False,
+      "middle_ppo.hidden": (8,), **fields})
   low = low_lib.make_low(OBS, ACT, 1.0, config.low)
   return config, low, middle_lib.make_middle(OBS, ACT, jp.array([0.0, 9.5, 0.5]), config,
                                              low.td3.act)

@@ -1,7 +1,5 @@
 """The Top level's transition and update, and what the ablations switch off."""
 
-import dataclasses
-
 import jax
 import jax.numpy as jp
 import numpy as np
@@ -15,8 +13,7 @@ _ppo = ppo.PPOConfig(hidden=(8,), discrete=True)
 
 
 def _top(method):
-  return make_top(OBS, TARGET, dataclasses.replace(methods.make_config(method, "AntPush").top,
-                                                   ppo=_ppo))
+  return make_top(OBS, TARGET, methods.make_config(method, "AntPush", {"top.ppo": _ppo}).top)
 
 
 def _horizon(mode, reward=-100.0, done_count=30.0, count=50.0):
