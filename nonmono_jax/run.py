@@ -264,3 +264,4 @@ def remembering_ctrl_c():
     yield
   finally:
     signal.signal(signal.SIGINT, previous)
+    _INTERRUPTED.clear()  # a remembered Ctrl-C belongs to this run, not to the process's next

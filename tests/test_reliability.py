@@ -15,8 +15,8 @@ import time
 import pytest
 
 from experiments import cli
-from nonmono_jax import io, validation
-from tests_support import CACHE_DIR, ROOT, TINY_RUN
+from nonmono_jax import io, run, validation
+from tests_support import CACHE_DIR, ROOT, TINY_OVERRIDES, TINY_RUN, TINY_SIZE
 
 
 def _bytes(out):
@@ -314,3 +314,15 @@ def test_a_swallowed_ctrl_c_still_stops_the_run_after_the_chunk(tmp_path, monkey
   code, err, _ = _main(capsys, TINY_RUN + ["--method", "ours", "--out", out])
   assert code == 1 and len(err) == 1 and err[0].startswith("error: interrupted"), err
   assert len(calls) == 2 and "ours step 400" in err[0]
+
+
+def test_a_remembered_ctrl_c_ends_with_its_command(tmp_path, monkeypatch, capsys):
+  # A Ctrl-C remembered during one command must not stop a later library run in the same
+  # process (a notebook, or this test session): run_method checks the flag after each chunk.
+  test_a_swallowed_ctrl_c_still_stops_the_run_after_the_chunk(tmp_path, monkeypatch, capsys)
+  monkeypatch.undo()
+  plan = run.new_run("PointMaze", ["ours"], preset="quick", out=str(tmp_path / "next"),
+                     run=TINY_SIZE, overrides=TINY_OVERRIDES)
+  with run.open_folder(plan):
+    results = list(run.run_method(plan, "ours"))
+  assert [r.step for r in results] == [200, 400, 600, 800]
