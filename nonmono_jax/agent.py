@@ -74,8 +74,16 @@ class SeedState:
     return parts
 
 
+class _NamedKeys:
+  """Keys by name: ``split(key)`` gives one key per field, in field order."""
+
+  @classmethod
+  def split(cls, key):
+    return cls(*jax.random.split(key, len(dataclasses.fields(cls))))
+
+
 @struct.dataclass
-class InitKeys:
+class InitKeys(_NamedKeys):
   env: jax.Array
   low: jax.Array
   middle: jax.Array
@@ -85,13 +93,9 @@ class InitKeys:
   goals: jax.Array
   next: jax.Array
 
-  @classmethod
-  def split(cls, key):
-    return cls(*jax.random.split(key, 8))
-
 
 @struct.dataclass
-class StepKeys:
+class StepKeys(_NamedKeys):
   """One step's keys by phase. ``unused_1`` / ``unused_2`` keep the split's layout (and so
   every random stream of earlier runs); the PPO updates take no key."""
 
@@ -107,10 +111,6 @@ class StepKeys:
   unused_2: jax.Array
   eval: jax.Array
   relabel: jax.Array
-
-  @classmethod
-  def split(cls, key):
-    return cls(*jax.random.split(key, 12))
 
 
 @struct.dataclass
