@@ -59,14 +59,19 @@ def to_jsonable(obj: Any) -> Any:
   return obj
 
 
-def write_json(path: str, payload: dict) -> None:
-  """Atomically: a temporary file renamed over ``path``."""
+def write_text(path: str, text: str) -> None:
+  """Atomically (a synced temporary file renamed over ``path``), line endings as given."""
   tmp = path + ".tmp"
-  with open(tmp, "w") as f:
-    json.dump(payload, f, indent=1, sort_keys=True)
+  with open(tmp, "w", newline="") as f:
+    f.write(text)
     f.flush()
     os.fsync(f.fileno())
   os.replace(tmp, path)
+
+
+def write_json(path: str, payload: dict) -> None:
+  """Atomically: a temporary file renamed over ``path``."""
+  write_text(path, json.dumps(payload, indent=1, sort_keys=True))
 
 
 def read_json(path: str) -> dict:
@@ -150,12 +155,7 @@ class MetricsFile:
         dropped += 1
         continue
       keep.append(line)
-    tmp = self.path + ".tmp"
-    with open(tmp, "w", newline="") as f:
-      f.write("\n".join(keep) + "\n")
-      f.flush()
-      os.fsync(f.fileno())
-    os.replace(tmp, self.path)
+    write_text(self.path, "\n".join(keep) + "\n")
     return dropped
 
 

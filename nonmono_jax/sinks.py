@@ -70,7 +70,7 @@ class JsonLines:
       if line.endswith("\n") and not (record.get("method") == method
                                       and record.get("env_step", 0) > env_step):
         keep.append(line)
-    _replace_text(self.path, "".join(keep))
+    io.write_text(self.path, "".join(keep))
 
   def write(self, result) -> None:
     with open(self.path, "a") as f:
@@ -83,15 +83,6 @@ class JsonLines:
 
   def close(self) -> None:
     pass
-
-
-def _replace_text(path: str, text: str) -> None:
-  tmp = path + ".tmp"
-  with open(tmp, "w") as f:
-    f.write(text)
-    f.flush()
-    os.fsync(f.fileno())
-  os.replace(tmp, path)
 
 
 class TensorBoard:
