@@ -15,6 +15,7 @@ import pytest
 import envs
 from experiments import random_baseline
 from nonmono_jax import methods, train
+from tests_support import OPTIMISED
 
 STEPS = 40_000
 CHUNK = 4_000
@@ -23,7 +24,7 @@ CHUNK = 4_000
 def _train(method: str, seeds: int, steps: int = STEPS):
   env = envs.make("PointMaze", episode_length=methods.TASKS["PointMaze"].episode_length)
   trainer = train.make_trainer(env, methods.make_config(method, "PointMaze"), num_seeds=seeds,
-                               chunk_steps=CHUNK)
+                               chunk_steps=CHUNK, compiler_options=OPTIMISED)
   states = trainer.init(jax.random.PRNGKey(0))
   for t0 in range(0, steps, CHUNK):
     states, metrics = trainer.chunk(states, t0)

@@ -20,3 +20,7 @@ TINY_OVERRIDES = {"warmup_steps": 100, "top.starting_steps": 100, "eval_every": 
                   "eval_episodes": 2, "low.hidden": (16, 16), "middle.hidden": (16, 16),
                   "low.batch_size": 8, "middle.batch_size": 8, "middle_ppo.hidden": (16,),
                   "top.ppo.hidden": (16,)}
+
+# XLA's default optimisation, for tests that train for real: the suite compiles at LLVM -O0
+# (conftest.py), at which the point preset's training step runs 2.5x slower.
+OPTIMISED = {"xla_backend_optimization_level": 3}
