@@ -93,15 +93,23 @@ def switch_probability(state: HomeostasisState, x: jax.Array,
 
   xplus standardises by the standard deviation sqrt(x2bar), as Pislar et al. do; Kim et al.'s
   PyTorch code divides by the variance x2bar instead (a quirk not reproduced here).
+
+  x - xbar is computed as (1 - 1/tau) (x - xbar_old), so the first step after a reset gives
+  z = 0 exactly. Computed as x - xbar it is 0 only if XLA evaluates x the same way in both
+  places: a fused program that recomputes x may round it differently, and the difference of
+  ~1e-8, divided by the floor EPS, made z about 3 (xplus about 20) in the first check after
+  every reset (seen in a program compiled at LLVM -O0: the switch rate fell from rho to rho/5).
   """
   x = jp.asarray(x, jp.float32)
   rho = jp.asarray(rho, jp.float32)
   t = state.t + 1
   tau = jp.minimum(t.astype(jp.float32), HORIZON / rho)
   keep = 1.0 - 1.0 / tau
-  xbar = keep * state.xbar + x / tau
-  x2bar = keep * state.x2bar + jp.square(x - xbar) / tau
-  z = (x - xbar) / jp.maximum(jp.sqrt(x2bar), EPS)
+  deviation = x - state.xbar
+  xbar = state.xbar + deviation / tau  # = keep xbar + x / tau
+  excess = keep * deviation  # = x - xbar, and exactly 0 at t = 1 (keep = 0)
+  x2bar = keep * state.x2bar + jp.square(excess) / tau
+  z = excess / jp.maximum(jp.sqrt(x2bar), EPS)
   xplus = jp.exp(jp.minimum(z, MAX_Z))
   xplusbar = keep * state.xplusbar + xplus / tau
   prob = jp.minimum(1.0, rho * xplus / xplusbar)
