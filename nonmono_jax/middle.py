@@ -100,15 +100,16 @@ def make_middle(obs_size: int, action_size: int, target, config: AgentConfig,
       return jax.random.uniform(key, (k,), minval=-goal_range, maxval=goal_range)
     return jp.clip(jax.random.normal(key, (k,)) * goal_range, -goal_range, goal_range)
 
-  def goal(td3_params, ppo_params, obs, mode, key, warm, t):
-    """(goal, PPO action to store, its log pi_PPO) from the sub-policy ``mode``.
+  def goal(td3_params, ppo_params, obs, mode, key, warm, t, noise=config.middle_goal_noise):
+    """(goal, PPO action to store, its log pi_PPO) from the sub-policy ``mode``; ``noise``
+    the std on TD3 goals (traced in a lane, ``hyper.Hyper.middle_goal_noise``).
 
     Random goals in warm-up. The stored PPO action is PPO's own sample ("own", the paper's
     code) or the executed goal ("executed").
     """
     k1, k2, k3 = jax.random.split(key, 3)
     g_random = random_goal(k1)
-    g_td3 = learner.explore(td3_params, obs, target, k2, config.middle_goal_noise)
+    g_td3 = learner.explore(td3_params, obs, target, k2, noise)
     if explorer is None:
       g = jp.where(warm | (mode == hierarchy.RANDOM), g_random, g_td3)
       return g, g, jp.zeros(())

@@ -1,0 +1,65 @@
+"""Variants as lanes: ours and an ablation in one program give each variant's own run."""
+
+import jax
+import numpy as np
+import pytest
+
+import envs
+from nonmono_jax import hyper, methods, train
+from tests.tests_support import TINY_OVERRIDES
+
+# Past warm-up (100) and the starting mode (100) the Top trains at steps 399 and 799.
+STEPS, CHUNK, SEEDS, EPISODE = 800, 400, 2, 100
+
+
+def tiny(method, overrides=None):
+  config = methods.make_config(method, "PointMaze", {**TINY_OVERRIDES, **(overrides or {})})
+  return methods.size_buffers(config, STEPS)
+
+
+def _run(trainer):
+  states = trainer.init(jax.random.PRNGKey(3))
+  chunks = []
+  for t0 in range(0, STEPS, CHUNK):
+    states, metrics = trainer.chunk(states, t0)
+    chunks.append(jax.device_get(metrics))
+  return jax.device_get(states), chunks
+
+
+@pytest.fixture(scope="module")
+def runs():
+  env = envs.make("PointMaze", episode_length=EPISODE)
+  group = train.make_group_trainer(env, [tiny("ours"), tiny("ours-no-mods")], SEEDS, CHUNK)
+  alone = train.make_trainer(env, tiny("ours-no-mods"), SEEDS, CHUNK)
+  return group, _run(group), _run(alone)
+
+
+def test_a_lane_of_a_group_is_that_variant_run_alone(runs):
+  group, (g_states, g_chunks), (a_states, a_chunks) = runs
+  assert group.num_lanes == 2 * SEEDS and g_chunks[0]["success"].shape == (2 * SEEDS,)
+  assert a_chunks[-1]["top/updated"].min() > 0  # the Top trained in the compared chunk
+  for g, a in zip(g_chunks, a_chunks):
+    assert set(g) == set(a)
+    for name in a:
+      np.testing.assert_allclose(group.lanes(g, 1)[name], a[name], rtol=1e-4, atol=1e-5,
+                                 err_msg=name)
+  jax.tree.map(lambda g, a: np.testing.assert_allclose(g, a, rtol=1e-4, atol=1e-5),
+               group.lanes(g_states, 1).chooser.learner.params, a_states.chooser.learner.params)
+
+
+def test_the_variants_differ_in_what_their_numbers_change(runs):
+  group, (_, g_chunks), _ = runs
+  ours, no_mods = group.lanes(g_chunks[-1], 0), group.lanes(g_chunks[-1], 1)
+  # Same key, same warm-up: the lanes part only where alpha and the S_E weight act.
+  np.testing.assert_array_equal(group.lanes(g_chunks[0], 0)["count/TD3"],
+                                group.lanes(g_chunks[0], 1)["count/TD3"])
+  assert not np.allclose(ours["horizon/r_final"], no_mods["horizon/r_final"])
+
+
+def test_only_configs_with_one_static_key_share_a_program():
+  assert hyper.static_key(tiny("ours", {"top.alpha": (0.1, 0.2, 0.3)})) == hyper.static_key(
+      tiny("ours-no-loss-mod"))
+  with pytest.raises(ValueError, match="switch"):
+    hyper.check_group([tiny("ours"), tiny("hiro")])
+  with pytest.raises(ValueError, match="top.horizon"):
+    hyper.check_group([tiny("ours"), tiny("ours", {"top.horizon": 20})])
