@@ -69,7 +69,10 @@ class Trainer:
     return self.variants * self.num_seeds
 
   def lanes(self, tree, variant: int):
-    """Variant ``variant``'s seeds of a per-lane pytree (states or metrics)."""
+    """Variant ``variant``'s seeds of a per-lane pytree (states or metrics); the tree itself
+    for a trainer of one variant (no copy)."""
+    if self.variants == 1:
+      return tree
     s = self.num_seeds
     return jax.tree.map(lambda x: x[variant * s:(variant + 1) * s], tree)
 

@@ -1,11 +1,15 @@
 """Variants as lanes: ours and an ablation in one program give each variant's own run."""
 
+import itertools
+import os
+
 import jax
 import numpy as np
 import pytest
 
 import envs
-from nonmono_jax import hyper, methods, train
+from nonmono_jax import hyper, methods, run, sinks, train
+from nonmono_jax import plan as plan_lib
 from tests.tests_support import TINY_OVERRIDES
 
 # Past warm-up (100) and the starting mode (100) the Top trains at steps 399 and 799.
@@ -63,3 +67,56 @@ def test_only_configs_with_one_static_key_share_a_program():
     hyper.check_group([tiny("ours"), tiny("hiro")])
   with pytest.raises(ValueError, match="top.horizon"):
     hyper.check_group([tiny("ours"), tiny("ours", {"top.horizon": 20})])
+
+
+def _plan(out, sweep=None):
+  return run.new_run("PointMaze", ["ours", "ours-no-mods"], preset="quick", out=str(out),
+                     overrides=TINY_OVERRIDES, sweep=sweep,
+                     run={"seeds": SEEDS, "steps": STEPS, "chunk": CHUNK,
+                          "checkpoint_every": CHUNK, "episode_length": EPISODE})
+
+
+def _train(plan, resume=False, chunks=None):
+  with run.open_folder(plan, resume=resume):
+    outputs = [sinks.MetricsCsv(plan.out)]
+    with sinks.closing(outputs):
+      (group,) = plan.groups()
+      return list(itertools.islice(run.run_group(plan, group, outputs, log=lambda _: None),
+                                   chunks))
+
+
+def test_a_group_run_writes_each_variant_and_resumes_exactly(tmp_path):
+  """ours and ours-no-mods as one program: their own rows and checkpoints; stopped after a
+  chunk and resumed, the same metrics.csv as a run that never stopped."""
+  whole = _plan(tmp_path / "whole")
+  assert whole.groups() == [["ours", "ours-no-mods"]]
+  results = _train(whole)
+  assert [r.method for r in results] == ["ours", "ours-no-mods"] * 2
+  assert sorted(os.listdir(tmp_path / "whole" / "checkpoints")) == ["ours", "ours-no-mods"]
+  _train(_plan(tmp_path / "stopped"), chunks=2)  # the first chunk of both, checkpointed
+  _train(run.load_run(str(tmp_path / "stopped")), resume=True)
+  assert ((tmp_path / "whole" / "metrics.csv").read_bytes()
+          == (tmp_path / "stopped" / "metrics.csv").read_bytes())
+
+
+def test_a_sweep_names_its_variants_and_saves_their_values(tmp_path):
+  plan = _plan(tmp_path, sweep={"top.alpha": [(0, 0.4, 0.7), (0, 0.2, 0.35)]})
+  names = ["ours+top.alpha=0,0.4,0.7", "ours+top.alpha=0,0.2,0.35",
+           "ours-no-mods+top.alpha=0,0.4,0.7", "ours-no-mods+top.alpha=0,0.2,0.35"]
+  assert plan.groups() == [names]
+  assert plan.configs[names[1]].top.alpha == (0.0, 0.2, 0.35)
+  with run.open_folder(plan):
+    pass
+  loaded = run.load_run(str(tmp_path))
+  assert loaded.configs == plan.configs and not loaded.warnings
+  assert loaded.variants[names[3]] == {"method": "ours-no-mods",
+                                       "overrides": {"top.alpha": [0, 0.2, 0.35]}}
+
+
+def test_a_run_from_before_variants_resumes_its_methods_one_after_another(tmp_path):
+  """Its methods may stand at different steps: they keep running alone, as they ran."""
+  with run.open_folder(_plan(tmp_path)):
+    pass
+  payload = plan_lib.read_config(str(tmp_path))
+  del payload["grouped"], payload["variants"]
+  assert plan_lib.from_json(payload, str(tmp_path)).groups() == [["ours"], ["ours-no-mods"]]
