@@ -224,12 +224,12 @@ def _clock(p: _Parts, t) -> Clock:
                episode_end=(t + 1) % p.env.episode_length == 0, segment_end=i == p.config.c - 1)
 
 
-def _act(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys):
+def _act(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys, hp: hyper.Hyper):
   """Low acts in every env and the envs step; the Low buffer, segments and horizons record it."""
   s = state.env.obs
   per_env = {"s": s, "goal": state.goal, "key": jax.random.split(keys.act, p.config.num_envs)}
-  a = _per_env(lambda params, e: p.low.act(params, e["s"], e["goal"], e["key"], clock.warm),
-               state.low.params, per_env)
+  a = _per_env(lambda params, e: p.low.act(params, e["s"], e["goal"], e["key"], clock.warm,
+                                           hp.low), state.low.params, per_env)
   env_next = jax.vmap(p.env.step)(state.env, a)
   step = EnvStep(s=s, goal=state.goal, action=a, s_next=env_next.obs, reward=env_next.reward,
                  success=env_next.success)
@@ -294,16 +294,16 @@ def _updates(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys, hp: hype
   t, live = clock.t, clock.live
 
   def low_update(state):
-    new, m = p.low.update(state.low, state.low_buffer, keys.low, t)
+    new, m = p.low.update(state.low, state.low_buffer, keys.low, t, hp.low)
     return state.replace(low=new), m
 
   def middle_update(state):
     new, m = p.middle.td3_update(state.middle, state.middle_buffer, state.low.params,
-                                 keys.middle, t)
+                                 keys.middle, t, hp.middle)
     return state.replace(middle=new), m
 
   def middle_ppo_update(state):
-    new, m = p.middle.ppo_update(state.middle_ppo, t)
+    new, m = p.middle.ppo_update(state.middle_ppo, t, hp.middle_ppo)
     return state.replace(middle_ppo=new), m
 
   gates = [("low", live, low_update), ("middle", live & clock.segment_end, middle_update)]
@@ -335,7 +335,7 @@ def _step(p: _Parts, state: SeedState, t, hp: hyper.Hyper):
   """One env step of every env of the seed, at global step ``t`` (unbatched), with the
   lane's numbers ``hp``."""
   keys, clock = StepKeys.split(state.key), _clock(p, t)
-  state, metrics = _act(p, state, clock, keys)
+  state, metrics = _act(p, state, clock, keys, hp)
   state = _reset(p, state, clock, keys)
   for phase in (_end_segment, _updates, _evaluation):
     state, m = phase(p, state, clock, keys, hp)

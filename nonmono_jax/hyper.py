@@ -5,7 +5,8 @@ jitted program is built from its *static* part and reads its *traced* part at ru
 
     static_key(config)   the config with every TRACED field at AgentConfig()'s value: configs
                          with equal static keys build the same program (they can be lanes of it)
-    of(config)           Hyper: the TRACED fields as float32 arrays (a lane's argument)
+    of(config)           Hyper: the TRACED fields as numbers (constants where closed over)
+    stack(configs)       Hyper of float32 arrays with a leading variant axis (lanes' arguments)
 
     trainer = train.make_group_trainer(env, [ours, ours_no_mods], num_seeds=4, chunk_steps=200)
 
@@ -13,8 +14,11 @@ A switch that only turns a term on or off is a 0/1 weight here: ``top.reward_mod
 into alpha (alpha = 0 without it) and ``top.loss_mod`` is the weight of S_E in Train_T's loss
 weights (1 - w S_E for TD3, 1 + w S_E for the explore modes). Both are exact in float32 at 0
 and 1, so a variant alone computes what it computed when they were Python branches.
-Everything else (sizes, c, horizons, schedules, which learners and which switch exist, the
-learning rates and TD3/PPO coefficients for now) is static: README, "Variants as lanes".
+The learners' numbers (learning rates, gamma, tau, noises, PPO's clip and coefficients) are
+traced too: each learner's ``TD3Hyper`` / ``PPOHyper``, the learning rates scaling the
+updates of ``optax.adam(1.0)`` (``learning.gradient_step``). Everything else (sizes, c,
+horizons, schedules, which learners and which switch exist) is static: README, "Variants as
+lanes".
 """
 
 from __future__ import annotations
@@ -23,11 +27,14 @@ import jax
 import numpy as np
 from flax import struct
 
+from nonmono_jax import ppo, td3
 from nonmono_jax.config import AgentConfig, TopConfig, differences, get, override
 
 # The dotted AgentConfig fields that are lanes' data, not program structure.
 TRACED = ("top.alpha", "top.reward_mod", "top.s_o", "top.s_o_start", "top.loss_mod",
-          "homeostasis.rho", "middle_goal_noise")
+          "homeostasis.rho", "middle_goal_noise",
+          *(f"{level}.{f}" for level in ("low", "middle") for f in td3.TRACED),
+          *(f"{level}.{f}" for level in ("middle_ppo", "top.ppo") for f in ppo.TRACED))
 
 
 @struct.dataclass
@@ -38,12 +45,13 @@ class TopHyper:
   s_o: jax.Array  # (3,) S_O[m]: done_m = S_O_m >= S_O[m]
   s_o_start: jax.Array  # () S_O during the starting mode
   s_e_weight: jax.Array  # () 1 with the loss modification, 0 without
+  ppo: ppo.PPOHyper  # the Top PPO's
 
   @classmethod
   def of(cls, top: TopConfig) -> "TopHyper":
     alpha = top.alpha if top.reward_mod else (0.0,) * len(top.alpha)
     return cls(alpha=_f32(alpha), s_o=_f32(top.s_o), s_o_start=_f32(top.s_o_start),
-               s_e_weight=_f32(1.0 if top.loss_mod else 0.0))
+               s_e_weight=_f32(1.0 if top.loss_mod else 0.0), ppo=ppo.PPOHyper.of(top.ppo))
 
 
 @struct.dataclass
@@ -53,6 +61,9 @@ class Hyper:
   top: TopHyper
   rho: jax.Array  # () the homeostasis target rate (Ref:*)
   middle_goal_noise: jax.Array  # () std of the Gaussian noise on Middle TD3 goals
+  low: td3.TD3Hyper  # learning rates, gamma, tau, noises of the Low TD3
+  middle: td3.TD3Hyper  # and of the Middle TD3
+  middle_ppo: ppo.PPOHyper  # learning rates, gamma, clip, coefficients of the Middle PPO
 
 
 def _f32(x) -> np.ndarray:
@@ -60,10 +71,12 @@ def _f32(x) -> np.ndarray:
 
 
 def of(config: AgentConfig) -> Hyper:
-  """The traced numbers of ``config`` (numpy: constants where closed over, leaves where
-  passed)."""
+  """The traced numbers of ``config``: compiled in as constants where closed over (the
+  learners' as the Python floats they were before), leaves where passed."""
   return Hyper(top=TopHyper.of(config.top), rho=_f32(config.homeostasis.rho),
-               middle_goal_noise=_f32(config.middle_goal_noise))
+               middle_goal_noise=_f32(config.middle_goal_noise),
+               low=td3.TD3Hyper.of(config.low), middle=td3.TD3Hyper.of(config.middle),
+               middle_ppo=ppo.PPOHyper.of(config.middle_ppo))
 
 
 def static_key(config: AgentConfig) -> AgentConfig:
@@ -74,7 +87,7 @@ def static_key(config: AgentConfig) -> AgentConfig:
 
 def stack(configs) -> Hyper:
   """The Hyper of each config stacked on a leading variant axis."""
-  return jax.tree.map(lambda *xs: np.stack(xs), *[of(c) for c in configs])
+  return jax.tree.map(lambda *xs: np.stack(xs).astype(np.float32), *[of(c) for c in configs])
 
 
 def check_group(configs) -> AgentConfig:

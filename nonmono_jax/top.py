@@ -91,7 +91,7 @@ def make_top(obs_size: int, target, config: TopConfig) -> Top:
     """Top PPO on the rollout, its loss weights 1 -+ w S_E (w = 0 without the loss
     modification: weights of exactly 1)."""
     weights = ppo.top_loss_weights(rollout.action, hp.s_e_weight * s_e, hierarchy.TD3)
-    return policy.update(state, rollout, None, weights)
+    return policy.update(state, rollout, None, weights, hp.ppo)
 
   return Top(ppo=policy, start=start, accumulate=accumulate, close=close,
              init_rollout=init_rollout, update=update)
