@@ -4,8 +4,11 @@
     python -m experiments.antpush --method ours --seeds 5 --out runs/push     # paper preset
     python -m experiments.antpush --resume runs/push                          # after a stop
     python -m experiments.antpush --top.alpha 0 0.4 0.7 --low.batch_size 256  # any field
+    python -m experiments.pointpush --method ours --sweep top.alpha=0,0.4,0.7 0,0.2,0.35
 
-Methods run one after another into one folder (``nonmono_jax.io``): ``config.json``,
+Methods (and sweep variants) whose programs coincide (``hyper.static_key``: ours and its
+ablations; a sweep of traced numbers) run as lanes of one program; the others one after
+another; all into one folder (``nonmono_jax.io``): ``config.json``,
 ``metrics.csv`` (one row per method, seed and chunk), ``metrics.jsonl`` (every metric) and
 ``checkpoints/<method>/``. The run itself is the library ``nonmono_jax.run`` (the plan, from
 the presets or from ``config.json``; the folder; the training loop; the output sinks): this
@@ -102,7 +105,14 @@ def make_parser(task: str) -> argparse.ArgumentParser:
       description=f"Train methods of Kim et al. (2023) on {task}; seeds are vmapped.",
       formatter_class=argparse.ArgumentDefaultsHelpFormatter)
   p.add_argument("--method", nargs="+", default=["ours"], choices=methods.METHODS,
-                 help="one or more; several run one after another into --out")
+                 help="one or more into --out: those that differ only in traced numbers "
+                      "(ours and its ablations) as lanes of one program, the others one after "
+                      "another")
+  p.add_argument("--sweep", nargs="+", action="append", default=None,
+                 metavar="FIELD=VALUE [VALUE ...]",
+                 help="variants of each method, one per value of a dotted config field (a "
+                      "tuple's entries joined by commas: --sweep top.alpha=0,0.4,0.7 0,0.2,0.35); "
+                      "given twice, the grid of both; named method+field=value")
   p.add_argument("--preset", default="paper", choices=methods.PRESETS,
                  help="paper: SPEC's numbers; quick: minutes on a CPU")
   p.add_argument("--seeds", type=int, default=None, help="vmapped seeds (default: preset)")
@@ -140,7 +150,31 @@ def plan_from_args(task: str, args: argparse.Namespace) -> plan_lib.Plan:
       task, args.method, preset=args.preset, out=args.out, seed=args.seed, overrides=overrides,
       run={name: getattr(args, name, None) for name in plan_lib.RUN_FIELDS},
       envs_per_seed=getattr(args, "envs_per_seed", None),
-      grad_steps=getattr(args, "grad_steps", None))
+      grad_steps=getattr(args, "grad_steps", None), sweep=parse_sweep(args.sweep))
+
+
+def parse_sweep(given) -> dict:
+  """``[["top.alpha=0,0.4,0.7", "0,0.2,0.35"], ...]`` -> {"top.alpha": [(0, 0.4, 0.7), ...]}."""
+  sweep = {}
+  for tokens in given or []:
+    path, sep, first = tokens[0].partition("=")
+    if not sep or not path:
+      raise ValueError(f"--sweep takes FIELD=VALUE [VALUE ...], got {' '.join(tokens)}")
+    if path in sweep:
+      raise ValueError(f"--sweep {path} is given twice")
+    texts = [first] + tokens[1:]
+    sweep[path] = [tuple(map(_number, t.split(","))) if "," in t else _number(t) for t in texts]
+  return sweep
+
+
+def _number(text: str):
+  """A sweep value: an int, a float, true/false, else the text."""
+  for kind in (int, float):
+    try:
+      return kind(text)
+    except ValueError:
+      pass
+  return {"true": True, "false": False}.get(text.lower(), text)
 
 
 # --- the command: checks, the run folder, the run ----------------------------------------------

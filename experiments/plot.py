@@ -39,6 +39,18 @@ LABELS = {"ours": "Ours", "hiro": "HIRO", "ref-uniform": "Ref:Uniform", "ref-ppo
           "ours-no-mods": "Ours w/o both"}
 ABLATIONS = ("ours", "ours-no-reward-mod", "ours-no-loss-mod", "ours-no-mods")
 MODE_COLORS = {"TD3": "tab:blue", "PPO": "tab:orange", "RANDOM": "tab:green"}
+
+
+def label(variant: str) -> str:
+  """A method's label; a sweep variant's (``ours+top.alpha=0,0.2,0.35``) with its values."""
+  method, _, values = variant.partition("+")
+  return LABELS.get(method, method) + (f" [{values.replace('+', '; ')}]" if values else "")
+
+
+def variants(rows, task) -> list[str]:
+  """The task's methods in LABELS order, each followed by its sweep variants (in row order)."""
+  names = list(dict.fromkeys(r["method"] for r in rows if r["task"] == task))
+  return [v for m in LABELS for v in names if v.partition("+")[0] == m]
 SUMMARY_NOTE = (
     "Final S_E (at the last evaluation) and best S_E (the maximum over evaluations) per seed, "
     "as the interquartile mean over seeds with a 95% stratified-bootstrap percentile interval "
@@ -150,7 +162,7 @@ def summary(rows, reps: int = stats.REPS) -> list[dict]:
   out = []
   for task in sorted({r["task"] for r in rows}):
     finals = {}
-    for m in LABELS:
+    for m in variants(rows, task):
       steps, values = per_seed(rows, task, m, "eval_success")
       if not len(steps):
         continue
@@ -194,7 +206,7 @@ def markdown_table(summary_rows) -> str:
            "|---|---|---|---|---|---|---|---|---|---|"]
   for r in summary_rows:
     lines.append(
-        f"| {r['task']} | {LABELS[r['method']]} | {r['seeds']} | {r['env_steps']} | "
+        f"| {r['task']} | {label(r['method'])} | {r['seeds']} | {r['env_steps']} | "
         f"{_interval_cell(r['final_s_e'])} | {_interval_cell(r['best_s_e'])} | "
         f"{_interval_cell(r['p_ours'])} | {' | '.join(_mode_cells(r))} |")
   return "\n".join(lines)
@@ -248,16 +260,16 @@ def _iqm_figure(plt, task, curves_, table, out) -> list[str]:
   colors = {m: f"C{i}" for i, m in enumerate(curves_)}
   fig, axes = plt.subplots(1, 3 if baselines else 2, figsize=(15 if baselines else 10.5, 4))
   for m, curve in curves_.items():
-    _iqm_band(axes[0], curve, LABELS[m], colors[m])
+    _iqm_band(axes[0], curve, label(m), colors[m])
   axes[0].set(title=f"{task}: S_E, IQM over seeds (95% CI)", xlabel="env steps",
               ylabel="S_E", ylim=(-0.05, 1.05))
   axes[0].legend(fontsize=8)
   axes[0].grid(alpha=0.3)
-  _intervals(axes[1], [LABELS[r["method"]] for r in table], [r["final_s_e"] for r in table],
+  _intervals(axes[1], [label(r["method"]) for r in table], [r["final_s_e"] for r in table],
              [colors[r["method"]] for r in table])
   axes[1].set(title="final S_E: IQM (95% CI)", xlim=(-0.05, 1.05))
   if baselines:
-    _intervals(axes[2], [f"Ours > {LABELS[r['method']]}" for r in baselines],
+    _intervals(axes[2], [f"Ours > {label(r['method'])}" for r in baselines],
                [r["p_ours"] for r in baselines], [colors[r["method"]] for r in baselines])
     axes[2].axvline(0.5, color="gray", ls="--", lw=1)
     axes[2].set(title="P(ours > method), final S_E (95% CI)", xlim=(-0.05, 1.05))
@@ -270,7 +282,7 @@ def _ablation_figure(plt, task, curves_, out) -> list[str]:
   """S_E of ours and its ablations: IQM over seeds with pointwise 95 % intervals."""
   fig, ax = plt.subplots(figsize=(5.5, 4))
   for m, curve in curves_.items():
-    _iqm_band(ax, curve, LABELS[m])
+    _iqm_band(ax, curve, label(m))
   ax.set(title=f"{task}: ablations", xlabel="env steps", ylabel="S_E, IQM over seeds (95% CI)",
          ylim=(-0.05, 1.05))
   ax.legend(fontsize=8)
@@ -291,14 +303,14 @@ def plot(dirs, out=None) -> list[str]:
   os.makedirs(out, exist_ok=True)
   written = []
   for task in sorted({r["task"] for r in rows}):
-    present = [m for m in LABELS if any(r["task"] == task and r["method"] == m for r in rows)]
+    present = variants(rows, task)
 
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4))
     for m in present:
       steps, mean, std, n = curves(rows, task, m, "eval_success")
-      _band(ax1, steps, mean, std, f"{LABELS[m]} ({n} seeds)")
+      _band(ax1, steps, mean, std, f"{label(m)} ({n} seeds)")
       steps, mean, std, n = curves(rows, task, m, "eval_return")
-      _band(ax2, steps, mean, std, LABELS[m])
+      _band(ax2, steps, mean, std, label(m))
     ax1.set(title=f"{task}: success rate", xlabel="env steps",
             ylabel="S_E (Middle TD3 + Low TD3)", ylim=(-0.05, 1.05))
     ax2.set(title=f"{task}: evaluation return", xlabel="env steps", ylabel="return per episode")
@@ -316,7 +328,7 @@ def plot(dirs, out=None) -> list[str]:
       for mode in MODES:
         steps, mean, std, _ = curves(rows, task, m, f"cum_{unit}_{mode}")
         _band(ax, steps, mean, std, mode, MODE_COLORS[mode])
-      ax.set(title=LABELS[m], xlabel="env steps")
+      ax.set(title=label(m), xlabel="env steps")
       ax.grid(alpha=0.3)
     axes[0][0].set_ylabel("Middle decisions in the mode (cumulative)" if unit == "decisions"
                           else "env steps run in the mode (cumulative)")

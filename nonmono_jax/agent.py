@@ -16,7 +16,9 @@ in the phases of ``step``:
               the chooser's learner (Top PPO every 400)
     evaluation of Middle TD3 + Low TD3 every 10K steps -> S_E
 
-Every gate is a function of the global step ``t``, which is not batched over seeds, so each
+The numbers a variant may change (alpha, S_O, the S_E weight, rho, the goal noise: ``hyper.py``)
+are read from ``hp``, the lane's ``Hyper``: ``step(state, t, hp)``; without it, the config's
+own, as constants. Every gate is a function of the global step ``t``, which is not batched over seeds, so each
 stays a real ``lax.cond`` under ``vmap`` (SPEC section 6); only per-env data (modes, explore
 periods) is batched. Metrics are ``metrics.Metric``s that declare their chunk reduction.
 """
@@ -30,7 +32,7 @@ import jax
 import jax.numpy as jp
 from flax import struct
 
-from nonmono_jax import buffers, hierarchy, modes, td3
+from nonmono_jax import buffers, hierarchy, hyper, modes, td3
 from nonmono_jax import evaluate as evaluate_lib
 from nonmono_jax.config import AgentConfig
 from nonmono_jax.gates import gated
@@ -147,7 +149,7 @@ class Agent:
   middle: Middle
   chooser: modes.ModeChooser
   init: Callable[[jax.Array], SeedState]
-  step: Callable[[SeedState, jax.Array], tuple[SeedState, dict]]
+  step: Callable[..., tuple[SeedState, dict]]  # (state, t[, hp]) -> (state, metrics)
   evaluate: Callable[..., tuple]  # (low params, middle params, key) -> S_E, distance, return
 
 
@@ -180,12 +182,14 @@ def _counts(prefix, counted):
   return {f"{prefix}/{name}": Metric.sum(counted[j]) for j, name in enumerate(hierarchy.MODES)}
 
 
-def _new_segments(p: _Parts, state, obs, key, warm, t):
+def _new_segments(p: _Parts, state, obs, key, warm, t, noise):
   """The goals of new segments from ``obs`` in each env's mode (random where ``warm``)."""
-  shared = {"td3": state.middle.params, "ppo": p.middle.ppo_params(state.middle_ppo)}
+  shared = {"td3": state.middle.params, "ppo": p.middle.ppo_params(state.middle_ppo),
+            "noise": noise}
   per_env = {"obs": obs, "mode": state.mode, "key": jax.random.split(key, p.config.num_envs)}
   goal, ppo_action, log_prob = _per_env(
-      lambda sh, e: p.middle.goal(sh["td3"], sh["ppo"], e["obs"], e["mode"], e["key"], warm, t),
+      lambda sh, e: p.middle.goal(sh["td3"], sh["ppo"], e["obs"], e["mode"], e["key"], warm, t,
+                                  sh["noise"]),
       shared, per_env)
   return state.replace(goal=goal, segment=jax.vmap(p.middle.new_segment)(
       obs, goal, ppo_action, log_prob))
@@ -208,7 +212,9 @@ def _init(p: _Parts, key) -> SeedState:
       mode=mode, mode_steps=zeros_modes, mode_decisions=zeros_modes,
       mode_steps_after_start=zeros_modes, mode_decisions_after_start=zeros_modes,
       s_e=jp.zeros(()), eval_distance=jp.zeros(()), eval_return=jp.zeros(()), key=keys.next)
-  return _new_segments(p, state, env_state.obs, keys.goals, True, 0)
+  # Random goals in warm-up: the goal noise does not matter here.
+  return _new_segments(p, state, env_state.obs, keys.goals, True, 0,
+                       p.config.middle_goal_noise)
 
 
 def _clock(p: _Parts, t) -> Clock:
@@ -218,12 +224,12 @@ def _clock(p: _Parts, t) -> Clock:
                episode_end=(t + 1) % p.env.episode_length == 0, segment_end=i == p.config.c - 1)
 
 
-def _act(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys):
+def _act(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys, hp: hyper.Hyper):
   """Low acts in every env and the envs step; the Low buffer, segments and horizons record it."""
   s = state.env.obs
   per_env = {"s": s, "goal": state.goal, "key": jax.random.split(keys.act, p.config.num_envs)}
-  a = _per_env(lambda params, e: p.low.act(params, e["s"], e["goal"], e["key"], clock.warm),
-               state.low.params, per_env)
+  a = _per_env(lambda params, e: p.low.act(params, e["s"], e["goal"], e["key"], clock.warm,
+                                           hp.low), state.low.params, per_env)
   env_next = jax.vmap(p.env.step)(state.env, a)
   step = EnvStep(s=s, goal=state.goal, action=a, s_next=env_next.obs, reward=env_next.reward,
                  success=env_next.success)
@@ -256,7 +262,7 @@ def _reset(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys) -> SeedSta
   return jax.lax.cond(clock.episode_end, reset, lambda s: s, state)
 
 
-def _end_segment(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys):
+def _end_segment(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys, hp: hyper.Hyper):
   """A Middle decision: Middle transitions into the TD3 buffer and PPO rollout; the mode
   switch; the next goals."""
   t, warmup = clock.t, p.config.warmup_steps
@@ -272,31 +278,32 @@ def _end_segment(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys):
     decision = modes.Decision(t=t, episode_end=clock.episode_end, obs=state.env.obs,
                               s_c=items["transition"].next_obs,
                               reward=items["transition"].reward, middle=state.middle.params)
-    chooser, mode, m = p.chooser.decide(state.chooser, state.mode, decision, keys)
+    chooser, mode, m = p.chooser.decide(state.chooser, state.mode, decision, keys, hp)
     state, decided = _count(state.replace(chooser=chooser, mode=mode), t + 1 >= warmup,
                             t + 1 >= p.chooser.live_from, "mode_decisions",
                             "mode_decisions_after_start")
     m = {**m, **_counts("decisions", decided)}
-    return _new_segments(p, state, state.env.obs, keys.goals, t + 1 < warmup, t), m
+    return _new_segments(p, state, state.env.obs, keys.goals, t + 1 < warmup, t,
+                         hp.middle_goal_noise), m
 
   return gated(clock.segment_end, end_segment, state)  # zeros where skipped
 
 
-def _updates(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys):
+def _updates(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys, hp: hyper.Hyper):
   """Learning after warm-up, each level on its own clock."""
   t, live = clock.t, clock.live
 
   def low_update(state):
-    new, m = p.low.update(state.low, state.low_buffer, keys.low, t)
+    new, m = p.low.update(state.low, state.low_buffer, keys.low, t, hp.low)
     return state.replace(low=new), m
 
   def middle_update(state):
     new, m = p.middle.td3_update(state.middle, state.middle_buffer, state.low.params,
-                                 keys.middle, t)
+                                 keys.middle, t, hp.middle)
     return state.replace(middle=new), m
 
   def middle_ppo_update(state):
-    new, m = p.middle.ppo_update(state.middle_ppo, t)
+    new, m = p.middle.ppo_update(state.middle_ppo, t, hp.middle_ppo)
     return state.replace(middle_ppo=new), m
 
   gates = [("low", live, low_update), ("middle", live & clock.segment_end, middle_update)]
@@ -307,11 +314,11 @@ def _updates(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys):
   for name, ran, fn in gates:
     state, m = gated(ran, fn, state)
     metrics.update(level(name, m, ran))
-  chooser, m = p.chooser.update(state.chooser, t, live, state.s_e)
+  chooser, m = p.chooser.update(state.chooser, t, live, state.s_e, hp)
   return state.replace(chooser=chooser), {**metrics, **m}
 
 
-def _evaluation(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys):
+def _evaluation(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys, hp: hyper.Hyper):
   """Middle TD3 + Low TD3 without noise every ``eval_every`` steps: S_E (evaluate.py)."""
   ran = clock.live & ((clock.t + 1) % p.config.eval_every == 0)
 
@@ -324,13 +331,14 @@ def _evaluation(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys):
   return state, level("eval", m, ran)
 
 
-def _step(p: _Parts, state: SeedState, t):
-  """One env step of every env of the seed, at global step ``t`` (unbatched)."""
+def _step(p: _Parts, state: SeedState, t, hp: hyper.Hyper):
+  """One env step of every env of the seed, at global step ``t`` (unbatched), with the
+  lane's numbers ``hp``."""
   keys, clock = StepKeys.split(state.key), _clock(p, t)
-  state, metrics = _act(p, state, clock, keys)
+  state, metrics = _act(p, state, clock, keys, hp)
   state = _reset(p, state, clock, keys)
   for phase in (_end_segment, _updates, _evaluation):
-    state, m = phase(p, state, clock, keys)
+    state, m = phase(p, state, clock, keys, hp)
     metrics.update(m)
   return state, metrics
 
@@ -346,6 +354,10 @@ def make_agent(env, config: AgentConfig = AgentConfig()) -> Agent:
   evaluate = evaluate_lib.make_evaluate(env, config.c, low.td3.act, middle.td3.act,
                                         config.eval_episodes, config.eval_target_networks)
   p = _Parts(config=config, env=env, low=low, middle=middle, chooser=chooser, evaluate=evaluate)
+  own = hyper.of(config)
+
+  def step(state, t, hp: hyper.Hyper | None = None):
+    return _step(p, state, t, own if hp is None else hp)
+
   return Agent(config=config, env=env, low=low, middle=middle, chooser=chooser,
-               init=lambda key: _init(p, key), step=lambda state, t: _step(p, state, t),
-               evaluate=evaluate)
+               init=lambda key: _init(p, key), step=step, evaluate=evaluate)

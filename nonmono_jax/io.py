@@ -253,6 +253,13 @@ class Checkpoints:
       return step, state
     return None, like
 
+  def set_aside_after(self, step: int, log=print) -> None:
+    """Moves the checkpoints past ``step`` to ``<directory>.broken/`` (a run going back to
+    ``step``, which will save those steps again)."""
+    for newer in [s for s in self.manager.all_steps() if s > step]:
+      log(f"set aside checkpoint {self.directory}/{newer} (its group restarts from step "
+          f"{step}); moved to {self._move_aside(newer)}")
+
   def _move_aside(self, step: int) -> str:
     aside = os.path.join(self.directory + ".broken", f"{step}-{time.strftime('%Y%m%d-%H%M%S')}")
     os.makedirs(os.path.dirname(aside), exist_ok=True)

@@ -31,11 +31,11 @@ def make_low(obs_size: int, action_size: int, action_limit, config: td3.TD3Confi
   learner = td3.make_td3(obs_size, k, action_size, action_limit, config)
   lim = jp.broadcast_to(jp.asarray(action_limit, jp.float32), (action_size,))
 
-  def act(params, obs, goal, key, warm):
+  def act(params, obs, goal, key, warm, hp: td3.TD3Hyper = learner.hyper):
     """The behaviour action: uniform during warm-up, else pi_L plus Gaussian noise."""
     k1, k2 = jax.random.split(key)
     random = jax.random.uniform(k1, (action_size,), minval=-lim, maxval=lim)
-    return jp.where(warm, random, learner.explore(params, obs, goal, k2))
+    return jp.where(warm, random, learner.explore(params, obs, goal, k2, hp.expl_noise))
 
   def transition(s, g, a, s_next):
     g_next = hierarchy.goal_transition(s, g, s_next)
@@ -43,14 +43,15 @@ def make_low(obs_size: int, action_size: int, action_limit, config: td3.TD3Confi
                           reward=hierarchy.low_reward(s, g, s_next), next_obs=s_next,
                           next_context=g_next, done=hierarchy.low_done(g_next))
 
-  def update(state: td3.TD3State, buffer: buffers.ReplayBuffer, key, t):
+  def update(state: td3.TD3State, buffer: buffers.ReplayBuffer, key, t,
+             hp: td3.TD3Hyper = learner.hyper):
     """``updates`` TD3 updates on batches from the Low buffer; metrics of the last."""
 
     def one(state, i):
       kb, ku = jax.random.split(jax.random.fold_in(key, i))
       batch = buffers.sample(buffer, kb, config.batch_size)
       n = t * updates + i  # the update counter: the delayed actor's clock
-      return learner.update(state, batch, ku, n % config.policy_delay == 0)
+      return learner.update(state, batch, ku, n % config.policy_delay == 0, hp)
 
     return learning.repeat(one, state, updates)
 

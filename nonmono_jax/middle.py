@@ -100,15 +100,16 @@ def make_middle(obs_size: int, action_size: int, target, config: AgentConfig,
       return jax.random.uniform(key, (k,), minval=-goal_range, maxval=goal_range)
     return jp.clip(jax.random.normal(key, (k,)) * goal_range, -goal_range, goal_range)
 
-  def goal(td3_params, ppo_params, obs, mode, key, warm, t):
-    """(goal, PPO action to store, its log pi_PPO) from the sub-policy ``mode``.
+  def goal(td3_params, ppo_params, obs, mode, key, warm, t, noise=config.middle_goal_noise):
+    """(goal, PPO action to store, its log pi_PPO) from the sub-policy ``mode``; ``noise``
+    the std on TD3 goals (traced in a lane, ``hyper.Hyper.middle_goal_noise``).
 
     Random goals in warm-up. The stored PPO action is PPO's own sample ("own", the paper's
     code) or the executed goal ("executed").
     """
     k1, k2, k3 = jax.random.split(key, 3)
     g_random = random_goal(k1)
-    g_td3 = learner.explore(td3_params, obs, target, k2, config.middle_goal_noise)
+    g_td3 = learner.explore(td3_params, obs, target, k2, noise)
     if explorer is None:
       g = jp.where(warm | (mode == hierarchy.RANDOM), g_random, g_td3)
       return g, g, jp.zeros(())
@@ -193,7 +194,8 @@ def make_middle(obs_size: int, action_size: int, target, config: AgentConfig,
     q = learner.q_values(td3_params.target_critic, obs, tgt, learner.act(targets, obs, tgt))
     return q.min(axis=0)
 
-  def td3_update(state: td3.TD3State, buffer, low_params, key, t):
+  def td3_update(state: td3.TD3State, buffer, low_params, key, t,
+                 hp: td3.TD3Hyper = learner.hyper):
     """``middle_updates`` TD3 updates; with ``"sample"`` relabelling each batch is relabelled
     under the current Low actor (``low_params``) first."""
     cfg = config.middle
@@ -209,14 +211,15 @@ def make_middle(obs_size: int, action_size: int, target, config: AgentConfig,
             batch.action)
         batch = batch.replace(action=goals)
       n = (t // c) * config.middle_updates + i
-      return learner.update(state, batch, k3, n % cfg.policy_delay == 0)
+      return learner.update(state, batch, k3, n % cfg.policy_delay == 0, hp)
 
     return learning.repeat(one, state, config.middle_updates)
 
-  def ppo_update(explorer_state: Explorer, t):
+  def ppo_update(explorer_state: Explorer, t, hp: ppo.PPOHyper | None = None):
     """One Middle PPO update on the rollout, at the std of step t (reported as ``std``)."""
     std = ppo_std(t)
-    new, m = explorer.update(explorer_state.learner, explorer_state.rollout, std)
+    new, m = explorer.update(explorer_state.learner, explorer_state.rollout, std, None,
+                             explorer.hyper if hp is None else hp)
     return explorer_state.replace(learner=new), {**m, "std": std}
 
   return Middle(td3=learner, ppo=explorer, init_buffer=init_buffer, init_rollout=init_rollout,

@@ -10,8 +10,11 @@ A chooser owns its state (``SeedState.chooser``: ``Fixed``, ``TopState`` or the 
 
     init(keys, obs, middle_params) -> (state, mode)              the first segments' modes (E,)
     accumulate(state, reward, success) -> state                  every env step (R_m, Done_m)
-    decide(state, mode, decision, keys) -> (state, mode, metrics)  at a Middle decision
-    update(state, t, live, s_e) -> (state, metrics)              its learner, on its own clock
+    decide(state, mode, decision, keys, hp) -> (state, mode, metrics)  at a Middle decision
+    update(state, t, live, s_e, hp) -> (state, metrics)          its learner, on its own clock
+
+``hp`` is the lane's ``hyper.Hyper`` (alpha, S_O and the S_E weight of the Top, rho of the
+trigger): numbers read at run time, so variants of one program differ in them.
 
 ``keys`` are the agent's named keys (``agent.InitKeys`` / ``agent.StepKeys``): the Top uses
 ``top`` and ``horizon``, the trigger ``switch``. The starting mode runs after warm-up until
@@ -78,7 +81,7 @@ def _unchanged_accumulate(state, reward, success):
   return state
 
 
-def _no_update(state, t, live, s_e):
+def _no_update(state, t, live, s_e, hp):
   return state, {}
 
 
@@ -88,7 +91,7 @@ def make_fixed(config: AgentConfig, num_envs: int) -> ModeChooser:
   def init(keys, obs, middle_params):
     return Fixed(), jp.full((num_envs,), hierarchy.TD3, jp.int32)
 
-  def decide(state, mode, decision, keys):
+  def decide(state, mode, decision, keys, hp):
     return state, mode, {}
 
   return ModeChooser(name="none", starting_mode=hierarchy.TD3, live_from=config.warmup_steps,
@@ -117,15 +120,15 @@ def make_top_chooser(config: AgentConfig, obs_size: int, target, num_envs: int) 
     logp = lambda x: jax.vmap(lambda a: top.ppo.log_prob(params, x, a, None))(jp.arange(N_MODES))
     return jax.vmap(lambda x: jp.exp(logp(x)))(obs).mean(0)
 
-  def decide(state, mode, d: Decision, keys):
+  def decide(state, mode, d: Decision, keys, hp):
     """At a horizon's end: the Top transition, and the Top picks the next g_expl_mode."""
     H = cfg.horizon
     horizon_end = d.t % H == H - 1
 
     def end_horizon(operand):
       state, _ = operand
-      tr, m = jax.vmap(top.close, in_axes=(0, None, None))(
-          state.horizon, d.t + 1 - H < live_from, d.episode_end)
+      tr, m = jax.vmap(top.close, in_axes=(0, None, None, None))(
+          state.horizon, d.t + 1 - H < live_from, d.episode_end, hp.top)
       slot = (d.t // H) % cfg.rollout_length
       rollout = jax.tree.map(lambda r, x: r.at[:, slot].set(x), state.rollout, tr)
       horizon = start(state.learner.params, d.obs, jax.random.split(keys.horizon, E),
@@ -138,12 +141,12 @@ def make_top_chooser(config: AgentConfig, obs_size: int, target, num_envs: int) 
     (state, mode), m = gated(horizon_end, end_horizon, (state, mode))
     return state, mode, metrics_lib.level("horizon", m, horizon_end)
 
-  def update(state, t, live, s_e):
+  def update(state, t, live, s_e, hp):
     every = cfg.train_every
     ran = live & (t % every == every - 1)
 
     def train(state):
-      learner, m = top.update(state.learner, state.rollout, s_e)
+      learner, m = top.update(state.learner, state.rollout, s_e, hp.top)
       return state.replace(learner=learner), m
 
     state, m = gated(ran, train, state)
@@ -163,7 +166,7 @@ def make_trigger_chooser(config: AgentConfig, value: Callable, num_envs: int) ->
     trigger = jax.vmap(switch.init)(value(middle_params, obs))
     return trigger, jp.full((E,), explore if live_from > 0 else hierarchy.TD3, jp.int32)
 
-  def decide(trigger, mode, d: Decision, keys):
+  def decide(trigger, mode, d: Decision, keys, hp):
     """The trigger decides the next segment's mode (explore in the starting mode)."""
     v = value(d.middle, d.s_c)
 
@@ -171,7 +174,8 @@ def make_trigger_chooser(config: AgentConfig, value: Callable, num_envs: int) ->
       return jax.vmap(switch.restart)(trigger, v), jp.zeros((E,), bool)
 
     def deciding(trigger):
-      return jax.vmap(switch.decide)(trigger, v, d.reward, jax.random.split(keys.switch, E))
+      return jax.vmap(switch.decide, in_axes=(0, 0, 0, 0, None))(
+          trigger, v, d.reward, jax.random.split(keys.switch, E), hp.rho)
 
     # The window of the first exploit period starts at s_{live_from}.
     trigger, switched = jax.lax.cond(d.t + 1 <= live_from, starting, deciding, trigger)

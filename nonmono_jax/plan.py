@@ -4,6 +4,12 @@
                             overrides={"top.alpha": (0, 0.4, 0.7)}, run={"steps": 6000})
     plan = plan_lib.load_run("runs/pm")     # config.json is the source of truth
     plan.warnings                           # where it differs from today's presets
+    plan = plan_lib.new_run("PointMaze", ["ours"], sweep={"top.alpha": [(0, .4, .7), (0, .2, .35)]})
+    plan.groups()                           # [["ours+top.alpha=0,0.4,0.7", ...]]: one program
+
+A plan's configs are its variants, by name: a method (``ours``), or a method with sweep values
+(``ours+top.alpha=0,0.2,0.35``; ``variants`` keeps each one's method and values). Variants
+whose configs share a static key (``hyper.static_key``) are one group: one program of lanes.
 
 A new run is built from the presets (``methods``) and dotted overrides; a saved one is read
 back from its ``config.json`` (``config.config_from_dict``), not rebuilt: a preset default
@@ -16,6 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 import datetime
+import itertools
 import os
 import platform
 import sys
@@ -25,7 +32,7 @@ import jax
 import numpy as np
 
 import envs
-from nonmono_jax import io, methods, train, validation
+from nonmono_jax import hyper, io, methods, train, validation
 from nonmono_jax.config import AgentConfig, config_from_dict, differences, flatten, get
 from nonmono_jax.config import missing_fields, override
 
@@ -42,39 +49,66 @@ class Plan:
   seed: int
   out: str
   spec: methods.RunSpec
-  configs: dict  # method -> AgentConfig
+  configs: dict  # variant name -> AgentConfig
   overrides: dict  # dotted paths given on top of the presets
   widen: dict = dataclasses.field(default_factory=dict)  # envs_per_seed, grad_steps
   warnings: list = dataclasses.field(default_factory=list)  # a loaded run against today's code
   trainers: dict = dataclasses.field(default_factory=dict, repr=False, compare=False)
+  # a swept variant's name -> {"method": ..., "overrides": {path: value}} (methods: absent)
+  variants: dict = dataclasses.field(default_factory=dict)
+  # variants with one static key run as one program; False for runs from before (config.json
+  # without "grouped"), whose methods ran one after another and resume so
+  grouped: bool = True
 
-  def trainer(self, method: str) -> train.Trainer:
-    """The method's trainer, built once (the memory check and the run share it)."""
-    if method not in self.trainers:
+  def groups(self) -> list[list[str]]:
+    """The variants by program, in plan order: those with one static key share a trainer."""
+    if not self.grouped:
+      return [[name] for name in self.configs]
+    out: list[list[str]] = []
+    for name, config in self.configs.items():
+      key = hyper.static_key(config)
+      same = [g for g in out if hyper.static_key(self.configs[g[0]]) == key]
+      if same:
+        same[0].append(name)
+      else:
+        out.append([name])
+    return out
+
+  def trainer(self, names) -> train.Trainer:
+    """The trainer of a variant or a group of them, built once (the memory check and the run
+    share it): one variant's numbers as constants, a group's as lanes."""
+    names = (names,) if isinstance(names, str) else tuple(names)
+    if names not in self.trainers:
       env = envs.make(self.task, episode_length=self.spec.episode_length)
-      self.trainers[method] = train.make_trainer(env, self.configs[method],
-                                                 num_seeds=self.spec.seeds,
-                                                 chunk_steps=self.spec.chunk)
-    return self.trainers[method]
+      size = {"num_seeds": self.spec.seeds, "chunk_steps": self.spec.chunk}
+      self.trainers[names] = (
+          train.make_trainer(env, self.configs[names[0]], **size) if len(names) == 1 else
+          train.make_group_trainer(env, [self.configs[n] for n in names], **size))
+    return self.trainers[names]
 
 
 # --- a new run ----------------------------------------------------------------------------------
 
 def new_run(task: str, method_names, preset: str = "paper", out: str | None = None,
             seed: int = 0, overrides: dict | None = None, run: dict | None = None,
-            envs_per_seed: int | None = None, grad_steps: int | None = None) -> Plan:
+            envs_per_seed: int | None = None, grad_steps: int | None = None,
+            sweep: dict | None = None) -> Plan:
   """The checked plan of a new run: the presets of ``method_names`` on ``task``, widened
   (``methods.widen``), with the dotted ``overrides`` and the run size changes ``run``
   (``steps``, ``seeds``, ``chunk``, ``checkpoint_every``, ``episode_length``); replay buffers
-  sized for the run unless an override gives a size. Raises ValueError naming the field."""
+  sized for the run unless an override gives a size. ``sweep`` (dotted path -> list of
+  values; several paths: their grid) makes each method one variant per value. Raises
+  ValueError naming the field."""
   overrides = flatten(overrides or {})
   if grad_steps is not None and envs_per_seed is None:
     raise ValueError("--grad-steps needs --envs-per-seed")
   validation.check_value("--seed", seed)
-  specs = {m: preset_config(preset, m, task, overrides, envs_per_seed, grad_steps)
-           for m in method_names}
+  variants = sweep_variants(method_names, sweep or {})
+  specs = {name: preset_config(preset, v["method"], task, {**overrides, **v["overrides"]},
+                               envs_per_seed, grad_steps) for name, v in variants.items()}
   spec = _resized(next(iter(specs.values()))[1], run or {})
-  configs = {m: sized_for_run(c, spec, overrides) for m, (c, _) in specs.items()}
+  configs = {name: sized_for_run(c, spec, {**overrides, **variants[name]["overrides"]})
+             for name, (c, _) in specs.items()}
   check_plan(task, spec, configs)
   stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
   out = out if out is not None else os.path.join("runs", f"{task.lower()}-{stamp}")
@@ -82,7 +116,30 @@ def new_run(task: str, method_names, preset: str = "paper", out: str | None = No
     raise ValueError("--out must not be empty")
   return Plan(task=task, preset=preset, seed=seed, out=out, spec=spec, configs=configs,
               overrides=overrides,
-              widen={"envs_per_seed": envs_per_seed, "grad_steps": grad_steps})
+              widen={"envs_per_seed": envs_per_seed, "grad_steps": grad_steps},
+              variants={n: v for n, v in variants.items() if v["overrides"]})
+
+
+def sweep_variants(method_names, sweep: dict) -> dict:
+  """Variant name -> {"method", "overrides"}: each method once per point of the sweep's grid,
+  named ``method+path=value+...`` (a tuple's values joined by commas)."""
+  paths = list(sweep)
+  for path in paths:
+    if not isinstance(sweep[path], (list, tuple)) or not sweep[path]:
+      raise ValueError(f"--sweep {path} needs at least one value")
+  out = {}
+  for method in method_names:
+    for point in itertools.product(*(sweep[p] for p in paths)):
+      values = dict(zip(paths, point))
+      name = "+".join([method] + [f"{p}={_named(v)}" for p, v in values.items()])
+      out[name] = {"method": method, "overrides": values}
+  return out
+
+
+def _named(value) -> str:
+  if isinstance(value, (list, tuple)):
+    return ",".join(map(_named, value))
+  return f"{value:g}" if isinstance(value, float) else str(value)
 
 
 def preset_config(preset: str, method: str, task: str, overrides: dict,
@@ -154,25 +211,27 @@ def check_plan(task: str, spec: methods.RunSpec, configs: dict) -> None:
                      f"({jax.device_count()})")
 
 
-def state_bytes(plan: Plan, method: str) -> int:
-  """Bytes of the method's train state for all seeds (buffers, networks, envs): the shapes of
-  ``trainer.init`` from ``jax.eval_shape``, so nothing is allocated."""
-  shapes = jax.eval_shape(plan.trainer(method).init, jax.random.PRNGKey(0))
+def state_bytes(plan: Plan, names) -> int:
+  """Bytes of the train state of a variant or group for all seeds (buffers, networks, envs):
+  the shapes of ``trainer.init`` from ``jax.eval_shape``, so nothing is allocated."""
+  shapes = jax.eval_shape(plan.trainer(names).init, jax.random.PRNGKey(0))
   return sum(int(np.prod(x.shape, dtype=np.float64)) * x.dtype.itemsize
              for x in jax.tree.leaves(shapes))
 
 
 def check_memory(plan: Plan) -> None:
   """Refuses a run whose train state plus its evaluation's per-step records exceed the memory
-  available (methods run one after another: each is checked on its own)."""
+  available (groups of variants run one after another: each is checked on its own)."""
   have = available_bytes()
   spec = plan.spec
-  for method, config in plan.configs.items():
-    state = state_bytes(plan, method)
-    evals = (spec.seeds * config.num_envs * config.eval_episodes * spec.episode_length
+  for group in plan.groups():
+    config, lanes = plan.configs[group[0]], spec.seeds * len(group)
+    state = state_bytes(plan, group)
+    evals = (lanes * config.num_envs * config.eval_episodes * spec.episode_length
              * EVAL_RECORD_BYTES)
     if have is not None and state + evals > have:
-      raise ValueError(f"{method} for {spec.seeds} seeds needs {(state + evals) / 2**30:.1f} "
+      raise ValueError(f"{' + '.join(group)} for {spec.seeds} seeds needs "
+                       f"{(state + evals) / 2**30:.1f} "
                        f"GiB (train state with its replay buffers {state / 2**30:.1f}, "
                        f"evaluation episodes {evals / 2**30:.1f}), more than the "
                        f"{have / 2**30:.1f} GiB available: use fewer --seeds, smaller "
@@ -206,6 +265,7 @@ def to_json(plan: Plan) -> dict:
           "methods": list(plan.configs), "run": io.to_jsonable(plan.spec),
           "overrides": io.to_jsonable(plan.overrides), "widen": plan.widen,
           "configs": {m: io.to_jsonable(c) for m, c in plan.configs.items()},
+          "variants": io.to_jsonable(plan.variants), "grouped": plan.grouped,
           "versions": _versions(), "python": platform.python_version(),
           "device": str(jax.devices()[0].device_kind), "platform": jax.default_backend(),
           "device_count": jax.device_count(), "command": " ".join(sys.argv)}
@@ -252,6 +312,7 @@ def from_json(payload, out: str, task: str | None = None) -> Plan:
     spec = methods.RunSpec(**payload["run"])
     overrides = flatten(payload["overrides"])
     widen = payload.get("widen", {})
+    variants = payload.get("variants", {})  # absent in runs from before sweeps
     configs, warnings = {}, []
     for method in payload["methods"]:
       configs[method], notes = _saved_config(payload, method, spec, overrides, widen)
@@ -260,16 +321,20 @@ def from_json(payload, out: str, task: str | None = None) -> Plan:
   except (ValueError, TypeError, KeyError) as e:
     raise ValueError(f"{path}: {e}") from None
   return Plan(task=payload["task"], preset=payload["preset"], seed=payload["seed"], out=out,
-              spec=spec, configs=configs, overrides=overrides, widen=widen, warnings=warnings)
+              spec=spec, configs=configs, overrides=overrides, widen=widen, warnings=warnings,
+              variants=variants, grouped=payload.get("grouped", False) is True)
 
 
-def _saved_config(payload, method: str, spec, overrides: dict, widen: dict):
-  """(the saved config of ``method``, notes on how it differs from today's preset)."""
-  saved = payload["configs"].get(method)
+def _saved_config(payload, name: str, spec, overrides: dict, widen: dict):
+  """(the saved config of the variant ``name``, notes on how it differs from today's
+  preset)."""
+  saved = payload["configs"].get(name)
   if saved is None:
-    raise ValueError(f"configs has no entry for the method {method!r}")
+    raise ValueError(f"configs has no entry for the method {name!r}")
+  variant = payload.get("variants", {}).get(name, {"method": name, "overrides": {}})
+  overrides = {**overrides, **flatten(variant["overrides"])}
   try:
-    today, _ = preset_config(payload["preset"], method, payload["task"], overrides,
+    today, _ = preset_config(payload["preset"], variant["method"], payload["task"], overrides,
                              widen.get("envs_per_seed"), widen.get("grad_steps"))
     today = sized_for_run(today, spec, overrides)
   except ValueError as e:
@@ -308,3 +373,7 @@ def _check_payload(payload) -> None:
       raise ValueError(f"run.{key} must be an integer, got {value!r}")
   if not isinstance(payload.get("widen", {}), dict):
     raise ValueError("widen must be an object")
+  for name, variant in payload.get("variants", {}).items():
+    if not (isinstance(variant, dict) and isinstance(variant.get("method"), str)
+            and isinstance(variant.get("overrides"), dict)):
+      raise ValueError(f"variants.{name} must be an object with a method and its overrides")

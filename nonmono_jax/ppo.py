@@ -100,6 +100,27 @@ class PPOConfig:
 
 
 @struct.dataclass
+class PPOHyper:
+  """The numbers of a PPO learner (traced in a lane: ``hyper.Hyper``)."""
+
+  lr_actor: jax.Array
+  lr_critic: jax.Array
+  gamma: jax.Array
+  clip: jax.Array
+  entropy_coef: jax.Array
+  value_coef: jax.Array
+
+  @classmethod
+  def of(cls, config: PPOConfig) -> "PPOHyper":
+    """The config's numbers as Python floats: compiled in as they were before they could be
+    traced (``hyper.stack`` makes float32 lanes of them)."""
+    return cls(**{f: float(getattr(config, f)) for f in TRACED})
+
+
+TRACED = tuple(f.name for f in dataclasses.fields(PPOHyper))
+
+
+@struct.dataclass
 class PPOState:
   """Learner state: ``params = {'actor': ..., 'critic': ...}`` and Adam's state."""
 
@@ -129,6 +150,7 @@ class PPO:
   obs_size: int
   action_size: int
   action_scale: jax.Array
+  hyper: PPOHyper  # the config's numbers, used where a lane's are not given
   init: Callable[[jax.Array], PPOState]
   act: Callable[..., tuple[jax.Array, jax.Array]]  # (params, obs, key, std) -> (a, logp)
   mode: Callable[..., jax.Array]  # (params, obs) -> greedy action
@@ -198,7 +220,7 @@ def make_ppo(obs_size: int, action_size: int, config: PPOConfig = PPOConfig(),
                             final_activation=nn.tanh if scaled and not discrete else None)
   critic = networks.make_mlp(obs_size, config.hidden, 1, activation=nn.tanh)
   optimizer = optax.multi_transform(
-      {"actor": optax.adam(config.lr_actor), "critic": optax.adam(config.lr_critic)},
+      {"actor": optax.adam(1.0), "critic": optax.adam(1.0)},  # rates: learning.gradient_step
       lambda p: {k: jax.tree.map(lambda _: k, v) for k, v in p.items()})
 
   def init(key):
@@ -249,38 +271,41 @@ def make_ppo(obs_size: int, action_size: int, config: PPOConfig = PPOConfig(),
   def value(params, obs):
     return critic.apply(params["critic"], obs)[..., 0]
 
-  def per_sample_loss(params, batch: Rollout, std):
-    returns = monte_carlo_returns(batch.reward, batch.done, config.gamma)
+  own = PPOHyper.of(config)  # the numbers used where a lane's are not given
+
+  def per_sample_loss(params, batch: Rollout, std, hp: PPOHyper = own):
+    returns = monte_carlo_returns(batch.reward, batch.done, hp.gamma)
     logp = log_prob(params, batch.obs, batch.action, std)
     v = value(params, batch.obs)
     ent = entropy(params, batch.obs, std)
     adv = returns - jax.lax.stop_gradient(v)
     log_ratio = logp - batch.log_prob
     ratio = jp.exp(log_ratio)
-    surrogate = jp.minimum(ratio * adv, jp.clip(ratio, 1 - config.clip, 1 + config.clip) * adv)
+    surrogate = jp.minimum(ratio * adv, jp.clip(ratio, 1 - hp.clip, 1 + hp.clip) * adv)
     value_err = (v - returns) ** 2
-    loss = -surrogate + config.value_coef * value_err - config.entropy_coef * ent
+    loss = -surrogate + hp.value_coef * value_err - hp.entropy_coef * ent
     metrics = {
         "policy_loss": -surrogate.mean(),
         "value_loss": value_err.mean(),
         "entropy": ent.mean(),
         "approx_kl": jax.lax.stop_gradient(((ratio - 1) - log_ratio).mean()),
-        "clip_fraction": (jp.abs(ratio - 1) > config.clip).astype(jp.float32).mean(),
+        "clip_fraction": (jp.abs(ratio - 1) > hp.clip).astype(jp.float32).mean(),
     }
     return loss, metrics
 
-  def loss(params, batch: Rollout, std, loss_weights):
-    per_sample, metrics = per_sample_loss(params, batch, std)
+  def loss(params, batch: Rollout, std, loss_weights, hp: PPOHyper = own):
+    per_sample, metrics = per_sample_loss(params, batch, std, hp)
     total = jp.mean(loss_weights * per_sample)
     return total, {"loss": total, **metrics}
 
-  def update(state: PPOState, batch: Rollout, std, loss_weights=None):
+  def update(state: PPOState, batch: Rollout, std, loss_weights=None, hp: PPOHyper = own):
     if loss_weights is None:
       loss_weights = jp.ones(batch.reward.shape, jp.float32)
+    rates = {"actor": hp.lr_actor, "critic": hp.lr_critic}
 
     def epoch(carry, _):
-      params, opt_state, metrics = learning.gradient_step(loss, optimizer, *carry, batch, std,
-                                                          loss_weights)
+      params, opt_state, metrics = learning.gradient_step(
+          loss, optimizer, *carry, batch, std, loss_weights, hp, lr=rates)
       return (params, opt_state), metrics
 
     (params, opt_state), metrics = jax.lax.scan(
@@ -289,6 +314,6 @@ def make_ppo(obs_size: int, action_size: int, config: PPOConfig = PPOConfig(),
     return state.replace(params=params, opt_state=opt_state), metrics
 
   return PPO(config=config, obs_size=obs_size, action_size=action_size,
-             action_scale=action_scale, init=init, act=act, mode=mode, log_prob=log_prob,
+             action_scale=action_scale, hyper=own, init=init, act=act, mode=mode, log_prob=log_prob,
              entropy=entropy, value=value, per_sample_loss=per_sample_loss, loss=loss,
              update=update)

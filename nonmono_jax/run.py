@@ -142,44 +142,79 @@ def _check_folder(plan: Plan, resume: bool) -> None:
 # --- training ------------------------------------------------------------------------------------
 
 def run_plan(plan: Plan, outputs, clock: Clock | None = None, log=print) -> None:
-  """Every method of the plan, one after another (each continues from its checkpoint)."""
+  """Every group of the plan's variants (``Plan.groups``), one after another (each continues
+  from its checkpoints); variants that share a program run as its lanes."""
   clock = clock or Clock()
-  for method in plan.configs:
-    for _ in run_method(plan, method, outputs, clock, log):
+  for group in plan.groups():
+    for _ in run_group(plan, group, outputs, clock, log):
       pass
 
 
 def run_method(plan: Plan, method: str, outputs=(), clock: Clock | None = None, log=print):
-  """Trains ``method`` from its newest checkpoint to ``plan.spec.steps``, writing every chunk
-  to ``outputs`` (sinks) and yielding its ChunkResult; see the module doc."""
-  spec, config = plan.spec, plan.configs[method]
-  trainer = plan.trainer(method)
+  """Trains one variant alone (its numbers compiled in); see ``run_group``."""
+  return run_group(plan, [method], outputs, clock, log)
+
+
+def run_group(plan: Plan, names, outputs=(), clock: Clock | None = None, log=print):
+  """Trains the variants ``names`` (one static key) as one program from their newest common
+  checkpoint to ``plan.spec.steps``, writing every chunk to ``outputs`` (sinks) and yielding
+  one ChunkResult per variant and chunk; see the module doc. Each variant keeps its own
+  checkpoints (its lanes: the shape of a run of it alone), rows and sink files."""
+  spec, names = plan.spec, list(names)
+  num_envs = plan.configs[names[0]].num_envs
+  trainer = plan.trainer(names)
   clock = clock or Clock()
-  ckpts = io.Checkpoints(os.path.join(plan.out, "checkpoints", method))
+  ckpts = [io.Checkpoints(os.path.join(plan.out, "checkpoints", n)) for n in names]
+  if len(names) > 1:
+    log(f"{', '.join(names)}: one program, {len(names)} variants x {spec.seeds} seeds = "
+        f"{trainer.num_lanes} lanes")
   try:
-    start, states = ckpts.restore_newest(trainer.init(jax.random.PRNGKey(plan.seed)), log)
-    start = start or 0
+    start, states = _restore(trainer, names, ckpts, plan.seed, log)
     if start:
-      log(f"{method}: resumed from step {start}")
-    for sink in outputs:
-      sink.begin(method, start * config.num_envs)
+      log(f"{', '.join(names)}: resumed from step {start}")
+    for name in names:
+      for sink in outputs:
+        sink.begin(name, start * num_envs)
     timing = _Timing()
     for t0 in range(start, spec.steps, spec.chunk):
       # At least one chunk per process: a limit shorter than start-up + a chunk still advances.
       if not clock.allows(timing.chunk_s) and clock.progressed:
-        raise TimeLimit(_stop_for_time(plan, method, ckpts, t0, states))
-      states, result = _chunk(plan, method, trainer, states, t0, ckpts, timing)
-      for sink in outputs:
-        sink.write(result)
-      if result.step % spec.checkpoint_every == 0 or result.step == spec.steps:
-        ckpts.save(result.step, states)
+        raise TimeLimit("; ".join(_stop_for_time(plan, n, c, t0, trainer.lanes(states, v))
+                                  for v, (n, c) in enumerate(zip(names, ckpts))))
+      states, results = _chunk(plan, names, trainer, states, t0, ckpts, timing)
+      for result in results:
+        for sink in outputs:
+          sink.write(result)
+      step = t0 + spec.chunk
+      if step % spec.checkpoint_every == 0 or step == spec.steps:
+        for v, c in enumerate(ckpts):
+          c.save(step, trainer.lanes(states, v))
       clock.progressed = True
       if _INTERRUPTED.is_set():  # a Ctrl-C that JAX swallowed (raised in a GC callback)
         raise KeyboardInterrupt
-      timing.chunk_done(clock, spec.chunk * spec.seeds * config.num_envs)
-      yield result
+      timing.chunk_done(clock, spec.chunk * trainer.num_lanes * num_envs)
+      yield from results
   finally:
-    ckpts.close()
+    for c in ckpts:
+      c.close()
+
+
+def _restore(trainer, names, ckpts, seed: int, log):
+  """(step, lanes) from each variant's newest checkpoint that restores; variants whose newest
+  differ (a stop between their saves) all restart from the oldest of them."""
+  fresh = trainer.init(jax.random.PRNGKey(seed))
+  found = [c.restore_newest(trainer.lanes(fresh, v), log) for v, c in enumerate(ckpts)]
+  start = min(step or 0 for step, _ in found)
+  if len(names) == 1:
+    return start, found[0][1]
+  parts = []
+  for v, (c, (step, state)) in enumerate(zip(ckpts, found)):
+    if (step or 0) != start:
+      log(f"{names[v]}: back to step {start}, the step its group's other variants reached")
+      c.set_aside_after(start, log)
+      state = c.restore(start, trainer.lanes(fresh, v)) if start else trainer.lanes(fresh, v)
+    parts.append(state)
+  return start, jax.tree.map(lambda *xs: jax.numpy.concatenate(xs), *parts)
 
 
 @dataclasses.dataclass
@@ -201,26 +236,31 @@ class _Timing:
       self.steps_done += env_steps
 
 
-def _chunk(plan: Plan, method: str, trainer, states, t0: int, ckpts, timing: _Timing):
-  """One chunk from step ``t0``: (states, its ChunkResult); raises NonFinite."""
-  spec, config = plan.spec, plan.configs[method]
+def _chunk(plan: Plan, names, trainer, states, t0: int, ckpts, timing: _Timing):
+  """One chunk from step ``t0``: (states, a ChunkResult per variant); raises NonFinite."""
+  spec, num_envs = plan.spec, plan.configs[names[0]].num_envs
   timing.t_chunk = time.monotonic()
   states, metrics = trainer.chunk(states, t0)
   t_end = t0 + spec.chunk
   bad = io.first_non_finite(states, metrics)  # waits for the chunk
   if bad is not None:
-    last = ckpts.latest_step()
-    raise NonFinite(f"{method}: NaN or Inf in {bad[1]} of seed {bad[0]} within steps "
+    variant, seed = divmod(int(bad[0]), spec.seeds)
+    last = ckpts[variant].latest_step()
+    raise NonFinite(f"{names[variant]}: NaN or Inf in {bad[1]} of seed {seed} within steps "
                     f"{t0}-{t_end}; " + (f"the last good checkpoint is step {last}"
                                          if last is not None else
                                          "no checkpoint was saved before it"))
   metrics = jax.device_get(metrics)
-  rows = io.chunk_rows(plan.task, method, t_end * config.num_envs, states, metrics,
-                       spec.episode_length, t_end >= config.first_eval_steps)
-  return states, ChunkResult(method=method, step=t_end, env_step=t_end * config.num_envs,
-                             rows=rows, metrics=metrics, states=states,
-                             seconds=time.monotonic() - timing.t_chunk,
-                             rate=_rate_after(timing, spec.chunk * spec.seeds * config.num_envs))
+  seconds = time.monotonic() - timing.t_chunk
+  rate = _rate_after(timing, spec.chunk * trainer.num_lanes * num_envs)
+  results = []
+  for v, name in enumerate(names):
+    lanes, lane_metrics = trainer.lanes(states, v), trainer.lanes(metrics, v)
+    rows = io.chunk_rows(plan.task, name, t_end * num_envs, lanes, lane_metrics,
+                         spec.episode_length, t_end >= plan.configs[name].first_eval_steps)
+    results.append(ChunkResult(method=name, step=t_end, env_step=t_end * num_envs, rows=rows,
+                               metrics=lane_metrics, states=lanes, seconds=seconds, rate=rate))
+  return states, results
 
 
 def _rate_after(timing: _Timing, env_steps: int) -> float:

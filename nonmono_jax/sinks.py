@@ -124,14 +124,19 @@ class Progress:
 
   def __init__(self, plan, enabled: bool = True, log=print):
     self.plan, self.enabled, self.log, self.bar = plan, enabled, log, None
+    self.group: list = []  # the variants the bar follows (one program)
 
   def begin(self, method: str, env_step: int) -> None:
+    if method in self.group:  # a later variant of the bar's program
+      return
     self.close()
+    self.group = next((g for g in self.plan.groups() if method in g), [method])
     if self.enabled:
       from tqdm import tqdm
       num_envs = self.plan.configs[method].num_envs
+      desc = method if len(self.group) == 1 else f"{len(self.group)} variants in one program"
       self.bar = tqdm(total=self.plan.spec.steps, initial=env_step // num_envs,
-                      desc=f"{self.plan.task} {method}", unit="step", dynamic_ncols=True,
+                      desc=f"{self.plan.task} {desc}", unit="step", dynamic_ncols=True,
                       smoothing=0.1)
 
   def write(self, result) -> None:
@@ -143,12 +148,15 @@ class Progress:
                                               for m in hierarchy.MODES)
               + f" | {result.rate:.0f} env/s")
     if self.bar is not None:
-      self.bar.set_postfix_str(status, refresh=False)
-      self.bar.update(self.plan.spec.chunk)
+      self.bar.set_postfix_str(status if len(self.group) == 1 else f"{result.method}: {status}",
+                               refresh=False)
+      if result.method == self.group[-1]:
+        self.bar.update(self.plan.spec.chunk)
     else:
       self.log(f"{result.method} step {result.step}/{self.plan.spec.steps}: {status}")
 
   def close(self) -> None:
+    self.group = []
     if self.bar is not None:
       self.bar.close()
       self.bar = None

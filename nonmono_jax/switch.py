@@ -77,13 +77,13 @@ def make_informed_switch(config: homeostasis.HomeostasisConfig, explore_mode: in
   def mode(state: TriggerState):
     return jp.where(state.explore_left > 0, explore_mode, hierarchy.TD3).astype(jp.int32)
 
-  def exploit(state: TriggerState, v, reward, key):
+  def exploit(state: TriggerState, v, reward, key, rho):
     """Slide the window by one segment; once it is full, homeostasis may switch."""
     values = jp.concatenate([state.values[1:], v[None]])
     rewards = jp.concatenate([state.rewards[1:], reward[None]])
     filled = jp.minimum(state.filled + 1, k)
     x = homeostasis.value_promise_discrepancy(values[0], rewards, values[k], config.gamma)
-    h, switch = homeostasis.update(state.homeostasis, x, key, config.rho)
+    h, switch = homeostasis.update(state.homeostasis, x, key, rho)
     check = filled >= k
     h = jax.tree.map(lambda new, old: jp.where(check, new, old), h, state.homeostasis)
     switch = switch & check
@@ -91,8 +91,9 @@ def make_informed_switch(config: homeostasis.HomeostasisConfig, explore_mode: in
     return state.replace(homeostasis=h, values=values, rewards=rewards, filled=filled,
                          explore_left=left), switch
 
-  def decide(state: TriggerState, v, reward, key):
-    """At a Middle decision: V(s) of the new segment's start, R_M of the finished segment.
+  def decide(state: TriggerState, v, reward, key, rho=config.rho):
+    """At a Middle decision: V(s) of the new segment's start, R_M of the finished segment;
+    ``rho`` the target rate (traced in a lane, ``hyper.Hyper.rho``).
 
     Returns the new state (``mode`` gives the next segment's mode) and whether it switched
     to explore.
@@ -100,7 +101,7 @@ def make_informed_switch(config: homeostasis.HomeostasisConfig, explore_mode: in
     left = state.explore_left - 1
     explored = jax.tree.map(lambda a, b: jp.where(left == 0, a, b), restart(state, v),
                             state.replace(explore_left=jp.maximum(left, 0)))
-    exploited, switch = exploit(state, v, reward, key)
+    exploited, switch = exploit(state, v, reward, key, rho)
     exploring = state.explore_left > 0
     new = jax.tree.map(lambda a, b: jp.where(exploring, a, b), explored, exploited)
     return new, switch & ~exploring

@@ -62,6 +62,28 @@ class TD3Config:
 
 
 @struct.dataclass
+class TD3Hyper:
+  """The numbers of a TD3 learner (traced in a lane: ``hyper.Hyper``)."""
+
+  lr_actor: jax.Array
+  lr_critic: jax.Array
+  gamma: jax.Array
+  tau: jax.Array
+  policy_noise: jax.Array
+  noise_clip: jax.Array
+  expl_noise: jax.Array
+
+  @classmethod
+  def of(cls, config: TD3Config) -> "TD3Hyper":
+    """The config's numbers as Python floats: compiled in as they were before they could be
+    traced (``hyper.stack`` makes float32 lanes of them)."""
+    return cls(**{f: float(getattr(config, f)) for f in TRACED})
+
+
+TRACED = tuple(f.name for f in dataclasses.fields(TD3Hyper))
+
+
+@struct.dataclass
 class Transition:
   """One transition (or a batch of them): obs, context, action, reward, next, done."""
 
@@ -105,6 +127,7 @@ class TD3:
 
   config: TD3Config
   action_scale: jax.Array
+  hyper: TD3Hyper  # the config's numbers, used where a lane's are not given
   init: Callable[[jax.Array], TD3State]
   act: Callable[..., jax.Array]
   explore: Callable[..., jax.Array]
@@ -122,8 +145,9 @@ def make_td3(obs_size: int, context_size: int, action_size: int, action_scale,
                                 activation=nn.relu, final_activation=jp.tanh)
   critic_net = networks.make_mlp(obs_size + context_size + action_size, config.hidden, 1,
                                  activation=nn.relu)
-  actor_opt = optax.adam(config.lr_actor)
-  critic_opt = optax.adam(config.lr_critic)
+  actor_opt = optax.adam(1.0)  # the learning rates scale the updates (learning.gradient_step)
+  critic_opt = optax.adam(1.0)
+  own = TD3Hyper.of(config)  # the numbers used where a lane's are not given
 
   def pi(actor_params, obs, context):
     return scale * actor_net.apply(actor_params, obs, context)
@@ -143,19 +167,19 @@ def make_td3(obs_size: int, context_size: int, action_size: int, action_scale,
   def act(params: TD3Params, obs, context):
     return pi(params.actor, obs, context)
 
-  def explore(params: TD3Params, obs, context, key, noise_std=config.expl_noise):
+  def explore(params: TD3Params, obs, context, key, noise_std=own.expl_noise):
     a = pi(params.actor, obs, context)
     return jp.clip(a + noise_std * jax.random.normal(key, a.shape), -scale, scale)
 
-  def critic_loss(critic_params, params: TD3Params, batch: Transition, key):
+  def critic_loss(critic_params, params: TD3Params, batch: Transition, key, hp=own):
     a_next = pi(params.target_actor, batch.next_obs, batch.next_context)
     if config.target_smoothing:
-      noise = jp.clip(config.policy_noise * jax.random.normal(key, a_next.shape),
-                      -config.noise_clip, config.noise_clip)
+      noise = jp.clip(hp.policy_noise * jax.random.normal(key, a_next.shape),
+                      -hp.noise_clip, hp.noise_clip)
       a_next = jp.clip(a_next + noise, -scale, scale)
     q_next = q_values(params.target_critic, batch.next_obs, batch.next_context, a_next)
     y = jax.lax.stop_gradient(
-        td_target(batch.reward, batch.done, q_next[0], q_next[1], config.gamma))
+        td_target(batch.reward, batch.done, q_next[0], q_next[1], hp.gamma))
     q = q_values(critic_params, batch.obs, batch.context, batch.action)
     loss = jp.mean((q[0] - y) ** 2) + jp.mean((q[1] - y) ** 2)
     return loss, {"critic_loss": loss, "q": jp.mean(q[0]), "target_q": jp.mean(y)}
@@ -166,23 +190,25 @@ def make_td3(obs_size: int, context_size: int, action_size: int, action_scale,
     loss = -jp.mean(q1)
     return loss, {"actor_loss": loss}
 
-  def update(state: TD3State, batch: Transition, key, update_actor):
-    """One critic step; the actor step and Polyak targets when ``update_actor``.
+  def update(state: TD3State, batch: Transition, key, update_actor, hp: TD3Hyper = own):
+    """One critic step; the actor step and Polyak targets when ``update_actor``; ``hp`` the
+    numbers (a lane's, traced, or the config's).
 
     ``update_actor`` should be unbatched (from the trainer's step counter) so that under
     ``vmap`` over seeds the ``lax.cond`` stays a branch rather than a select.
     """
     p = state.params
-    critic, critic_opt_state, cm = learning.gradient_step(critic_loss, critic_opt, p.critic,
-                                                          state.critic_opt, p, batch, key)
+    critic, critic_opt_state, cm = learning.gradient_step(
+        critic_loss, critic_opt, p.critic, state.critic_opt, p, batch, key, hp,
+        lr=hp.lr_critic)
     state = state.replace(params=p.replace(critic=critic), critic_opt=critic_opt_state)
 
     def actor_step(state):
       p = state.params
       actor, opt, am = learning.gradient_step(actor_loss, actor_opt, p.actor, state.actor_opt,
-                                              p, batch)
-      p = p.replace(actor=actor, target_actor=polyak(p.target_actor, actor, config.tau),
-                    target_critic=polyak(p.target_critic, p.critic, config.tau))
+                                              p, batch, lr=hp.lr_actor)
+      p = p.replace(actor=actor, target_actor=polyak(p.target_actor, actor, hp.tau),
+                    target_critic=polyak(p.target_critic, p.critic, hp.tau))
       return state.replace(params=p, actor_opt=opt), am["actor_loss"]
 
     def skip(state):
@@ -191,5 +217,5 @@ def make_td3(obs_size: int, context_size: int, action_size: int, action_scale,
     state, a_loss = jax.lax.cond(update_actor, actor_step, skip, state)
     return state, {**cm, "actor_loss": a_loss}
 
-  return TD3(config=config, action_scale=scale, init=init, act=act, explore=explore,
+  return TD3(config=config, action_scale=scale, hyper=own, init=init, act=act, explore=explore,
              q_values=q_values, critic_loss=critic_loss, actor_loss=actor_loss, update=update)

@@ -25,6 +25,7 @@ from flax import struct
 
 from nonmono_jax import buffers, hierarchy, ppo
 from nonmono_jax.config import TopConfig
+from nonmono_jax.hyper import TopHyper
 
 
 @struct.dataclass
@@ -53,9 +54,7 @@ def make_top(obs_size: int, target, config: TopConfig) -> Top:
   k = hierarchy.GOAL_SIZE
   target = jp.asarray(target, jp.float32)
   policy = ppo.make_ppo(obs_size + k, len(hierarchy.MODES), config.ppo)
-  alpha = jp.asarray(config.alpha if config.reward_mod else (0.0,) * 3, jp.float32)
-  s_o = jp.asarray(config.s_o, jp.float32)
-  s_o_start = jp.full((3,), config.s_o_start, jp.float32)
+  own = TopHyper.of(config)  # the numbers used where a lane's are not given
 
   def start(params, obs, key, forced):
     """A new horizon from s: m ~ pi_T(s, target), or RANDOM where ``forced``."""
@@ -70,11 +69,12 @@ def make_top(obs_size: int, target, config: TopConfig) -> Top:
     return h.replace(reward=h.reward + reward, done_count=h.done_count + success,
                      count=h.count + 1)
 
-  def close(h: Horizon, starting, episode_end):
+  def close(h: Horizon, starting, episode_end, hp: TopHyper = own):
     """The Top transition of a finished horizon (``starting``: the starting mode's S_O)."""
     s_o_m = hierarchy.success_ratio(h.done_count, h.count)
-    done_m = hierarchy.top_done(s_o_m, jp.where(starting, s_o_start, s_o), h.mode)
-    r_final = hierarchy.modified_reward(h.reward, alpha, h.mode)
+    s_o_start = jp.broadcast_to(jp.asarray(hp.s_o_start, jp.float32), jp.shape(hp.s_o))
+    done_m = hierarchy.top_done(s_o_m, jp.where(starting, s_o_start, hp.s_o), h.mode)
+    r_final = hierarchy.modified_reward(h.reward, hp.alpha, h.mode)
     step = ppo.Rollout(obs=h.obs, action=h.mode, log_prob=h.log_prob, reward=r_final,
                        done=jp.maximum(done_m, jp.asarray(episode_end, jp.float32)))
     return step, {"s_o_m": s_o_m, "done_m": done_m, "r_final": r_final}
@@ -87,11 +87,11 @@ def make_top(obs_size: int, target, config: TopConfig) -> Top:
     return buffers.template(lambda h: close(h, False, False)[0], h,
                             lead=(config.rollout_length,))
 
-  def update(state: ppo.PPOState, rollout: ppo.Rollout, s_e):
-    """Top PPO on the rollout, with the S_E loss modification unless it is switched off."""
-    weights = (ppo.top_loss_weights(rollout.action, s_e, hierarchy.TD3) if config.loss_mod
-               else jp.ones(rollout.reward.shape))
-    return policy.update(state, rollout, None, weights)
+  def update(state: ppo.PPOState, rollout: ppo.Rollout, s_e, hp: TopHyper = own):
+    """Top PPO on the rollout, its loss weights 1 -+ w S_E (w = 0 without the loss
+    modification: weights of exactly 1)."""
+    weights = ppo.top_loss_weights(rollout.action, hp.s_e_weight * s_e, hierarchy.TD3)
+    return policy.update(state, rollout, None, weights, hp.ppo)
 
   return Top(ppo=policy, start=start, accumulate=accumulate, close=close,
              init_rollout=init_rollout, update=update)

@@ -18,8 +18,23 @@ is in the reduced dict.
 ``chunk`` donates its input states (the buffers are updated in place): pass it states from
 ``init``, a previous ``chunk`` or a checkpoint, and do not reuse them after the call.
 
-With several devices the seed axis is split across them (``jax.shard_map`` over a 1-D mesh
-``seeds``): each device runs its own seeds, with no communication; ``num_seeds`` must be a
+Variants as lanes (``make_group_trainer``): configs that share one static key
+(``hyper.static_key``: they differ only in traced numbers, e.g. ours and its three ablations,
+or a sweep of alpha) run as one program of V x S lanes, variant-major (lane v * S + i is seed i
+of variant v), each lane reading its own ``hyper.Hyper``. Lane (v, i) starts from the same key
+as seed i of variant v run alone, so it computes the same run, up to float rounding where a
+number is an argument instead of a compile-time constant.
+
+    trainer = make_group_trainer(env, [ours, ours_no_mods], num_seeds=4, chunk_steps=2000)
+    states = trainer.init(key)                      # 8 lanes
+    states, metrics = trainer.chunk(states, 0)      # metrics["success"].shape == (8,)
+    trainer.lanes(metrics, 1)                       # variant 1's seeds: (4,)
+
+``make_trainer`` (one config) embeds its numbers as constants: the program of a single
+variant is the one it was before variants existed.
+
+With several devices the lane axis is split across them (``jax.shard_map`` over a 1-D mesh
+``seeds``): each device runs its own lanes, with no communication; the lane count must be a
 multiple of the device count.
 """
 
@@ -31,21 +46,36 @@ from typing import Any, Callable, Mapping, Sequence
 
 import jax
 import jax.numpy as jp
+import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec as P
 
 from nonmono_jax import agent as agent_lib
+from nonmono_jax import hyper as hyper_lib
 from nonmono_jax import metrics as metrics_lib
 
 
 @dataclasses.dataclass(frozen=True)
 class Trainer:
   agent: agent_lib.Agent
-  num_seeds: int
+  num_seeds: int  # seeds per variant
   chunk_steps: int
   mesh: Mesh
   init: Callable
   chunk: Callable
   evaluate: Callable
+  variants: int = 1  # lanes = variants x num_seeds, variant-major
+
+  @property
+  def num_lanes(self) -> int:
+    return self.variants * self.num_seeds
+
+  def lanes(self, tree, variant: int):
+    """Variant ``variant``'s seeds of a per-lane pytree (states or metrics); the tree itself
+    for a trainer of one variant (no copy)."""
+    if self.variants == 1:
+      return tree
+    s = self.num_seeds
+    return jax.tree.map(lambda x: x[variant * s:(variant + 1) * s], tree)
 
 
 def reduce_chunk(metrics: dict) -> dict:
@@ -56,25 +86,49 @@ def reduce_chunk(metrics: dict) -> dict:
 def make_trainer(env, config: agent_lib.AgentConfig, num_seeds: int, chunk_steps: int,
                  devices: Sequence[jax.Device] | None = None,
                  compiler_options: Mapping[str, Any] | None = None) -> Trainer:
-  """Jitted ``init(key)``, ``chunk(states, t0)`` and ``evaluate(states, key)``.
+  """Jitted ``init(key)``, ``chunk(states, t0)`` and ``evaluate(states, key)`` of one config,
+  its numbers compiled in as constants.
 
   ``compiler_options`` go to XLA with each program (``jax.jit``): e.g.
   ``{"xla_backend_optimization_level": 0}`` halves the CPU compile of an MJX ant trainer, for
   smoke tests that run a few steps.
   """
+  return _make(env, config, None, num_seeds, chunk_steps, devices, compiler_options)
+
+
+def make_group_trainer(env, configs: Sequence[agent_lib.AgentConfig], num_seeds: int,
+                       chunk_steps: int, devices: Sequence[jax.Device] | None = None,
+                       compiler_options: Mapping[str, Any] | None = None) -> Trainer:
+  """One program for ``configs`` (equal ``hyper.static_key``s, else a ValueError naming the
+  fields): ``len(configs) * num_seeds`` lanes, each with its variant's ``Hyper``."""
+  key = hyper_lib.check_group(list(configs))
+  per_lane = jax.tree.map(lambda x: np.repeat(x, num_seeds, axis=0),
+                          hyper_lib.stack(list(configs)))
+  return _make(env, key, per_lane, num_seeds, chunk_steps, devices, compiler_options,
+               variants=len(configs))
+
+
+def _make(env, config, per_lane, num_seeds, chunk_steps, devices, compiler_options,
+          variants=1) -> Trainer:
+  """The trainer of ``variants`` x ``num_seeds`` lanes; ``per_lane``: each lane's Hyper, or
+  None for the config's own as constants."""
   for name, v in (("num_seeds", num_seeds), ("chunk_steps", chunk_steps)):
     if v < 1:
       raise ValueError(f"{name} must be >= 1, got {v}")
   devices = list(devices or jax.devices())
-  if num_seeds % len(devices):
-    raise ValueError(f"num_seeds ({num_seeds}) must be a multiple of the device count "
-                     f"({len(devices)})")
+  lanes = variants * num_seeds
+  if lanes % len(devices):
+    raise ValueError(f"variants x num_seeds ({variants} x {num_seeds}) must be a multiple of "
+                     f"the device count ({len(devices)})")
   agent = agent_lib.make_agent(env, config)
   mesh = Mesh(devices, ("seeds",))
   seeds = NamedSharding(mesh, P("seeds"))
 
-  def local_chunk(states, t0):
-    body = lambda st, t: jax.vmap(agent.step, in_axes=(0, None))(st, t)
+  def local_chunk(states, t0, hp):
+    if hp is None:  # the config's own numbers, constants
+      body = lambda st, t: jax.vmap(agent.step, in_axes=(0, None))(st, t)
+    else:  # each lane's
+      body = lambda st, t: jax.vmap(agent.step, in_axes=(0, None, 0))(st, t, hp)
     states, metrics = jax.lax.scan(body, states, t0 + jp.arange(chunk_steps))
     return states, reduce_chunk(metrics)
 
@@ -86,11 +140,19 @@ def make_trainer(env, config: agent_lib.AgentConfig, num_seeds: int, chunk_steps
                                              out_specs=P("seeds"), check_vma=False)
 
   def init(key):
-    return jax.vmap(agent.init)(jax.random.split(key, num_seeds))
+    """Lane v * S + i from seed i's key: the same start as variant v run alone."""
+    keys = jax.random.split(key, num_seeds)
+    return jax.vmap(agent.init)(jp.tile(keys, (variants, 1)) if variants > 1 else keys)
 
   jit = functools.partial(jax.jit, compiler_options=compiler_options)
+  if per_lane is None:
+    chunk = jit(shard(lambda st, t0: local_chunk(st, t0, None), (P("seeds"), P())),
+                donate_argnums=0)
+  else:
+    lanes_chunk = jit(shard(local_chunk, (P("seeds"), P(), P("seeds"))), donate_argnums=0)
+    hp = jax.device_put(per_lane, seeds)
+    chunk = lambda states, t0: lanes_chunk(states, t0, hp)
   return Trainer(
       agent=agent, num_seeds=num_seeds, chunk_steps=chunk_steps, mesh=mesh,
-      init=jit(init, out_shardings=seeds),
-      chunk=jit(shard(local_chunk, (P("seeds"), P())), donate_argnums=0),
-      evaluate=jit(shard(local_evaluate, (P("seeds"), P()))))
+      init=jit(init, out_shardings=seeds), chunk=chunk,
+      evaluate=jit(shard(local_evaluate, (P("seeds"), P()))), variants=variants)

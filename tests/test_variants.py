@@ -1,0 +1,136 @@
+"""Variants as lanes: ours and an ablation in one program give each variant's own run."""
+
+import itertools
+import os
+
+import jax
+import numpy as np
+import pytest
+
+import envs
+from nonmono_jax import hyper, methods, run, sinks, train
+from nonmono_jax import plan as plan_lib
+from tests.tests_support import TINY_OVERRIDES
+
+# Past warm-up (100) and the starting mode (100) the Top trains at steps 399 and 799.
+STEPS, CHUNK, SEEDS, EPISODE = 800, 400, 2, 100
+
+
+def tiny(method, overrides=None):
+  config = methods.make_config(method, "PointMaze", {**TINY_OVERRIDES, **(overrides or {})})
+  return methods.size_buffers(config, STEPS)
+
+
+def _run(trainer):
+  states = trainer.init(jax.random.PRNGKey(3))
+  chunks = []
+  for t0 in range(0, STEPS, CHUNK):
+    states, metrics = trainer.chunk(states, t0)
+    chunks.append(jax.device_get(metrics))
+  return jax.device_get(states), chunks
+
+
+# The ablation with learners' numbers of its own too: they are lanes' numbers as well.
+ABLATION = {"low.lr_critic": 3e-3, "middle.tau": 0.01, "top.ppo.clip": 0.3}
+
+
+@pytest.fixture(scope="module")
+def runs():
+  env = envs.make("PointMaze", episode_length=EPISODE)
+  ablation = tiny("ours-no-mods", ABLATION)
+  group = train.make_group_trainer(env, [tiny("ours"), ablation], SEEDS, CHUNK)
+  alone = train.make_trainer(env, ablation, SEEDS, CHUNK)
+  return group, _run(group), _run(alone)
+
+
+def test_a_lane_of_a_group_is_that_variant_run_alone(runs):
+  group, (g_states, g_chunks), (a_states, a_chunks) = runs
+  assert group.num_lanes == 2 * SEEDS and g_chunks[0]["success"].shape == (2 * SEEDS,)
+  assert a_chunks[-1]["top/updated"].min() > 0  # the Top trained in the compared chunk
+  for g, a in zip(g_chunks, a_chunks):
+    assert set(g) == set(a)
+    for name in a:
+      np.testing.assert_allclose(group.lanes(g, 1)[name], a[name], rtol=1e-4, atol=1e-5,
+                                 err_msg=name)
+  jax.tree.map(lambda g, a: np.testing.assert_allclose(g, a, rtol=1e-4, atol=1e-5),
+               group.lanes(g_states, 1).chooser.learner.params, a_states.chooser.learner.params)
+
+
+def test_gates_stay_branches_with_batched_numbers():
+  """Each lane's numbers are batched, the step counter is not: the gates stay ``cond``s."""
+  env = envs.make("PointMaze", episode_length=EPISODE)
+  group = train.make_group_trainer(env, [tiny("ours"), tiny("ours-no-mods")], SEEDS, CHUNK)
+  states = jax.eval_shape(group.init, jax.random.PRNGKey(0))
+  hp = jax.tree.map(np.asarray, hyper.stack([tiny("ours")] * group.num_lanes))
+  jaxpr = str(jax.make_jaxpr(jax.vmap(group.agent.step, in_axes=(0, None, 0)))(
+      states, np.int32(0), hp))
+  assert jaxpr.count("cond[") >= 10, jaxpr.count("cond[")
+
+
+def test_the_variants_differ_in_what_their_numbers_change(runs):
+  group, (_, g_chunks), _ = runs
+  ours, no_mods = group.lanes(g_chunks[-1], 0), group.lanes(g_chunks[-1], 1)
+  assert not np.allclose(ours["horizon/r_final"], no_mods["horizon/r_final"])
+  assert not np.allclose(ours["low/critic_loss"], no_mods["low/critic_loss"])
+
+
+def test_only_configs_with_one_static_key_share_a_program():
+  assert hyper.static_key(tiny("ours", {"top.alpha": (0.1, 0.2, 0.3)})) == hyper.static_key(
+      tiny("ours-no-loss-mod"))
+  with pytest.raises(ValueError, match="switch"):
+    hyper.check_group([tiny("ours"), tiny("hiro")])
+  with pytest.raises(ValueError, match="top.horizon"):
+    hyper.check_group([tiny("ours"), tiny("ours", {"top.horizon": 20})])
+
+
+def _plan(out, sweep=None):
+  return run.new_run("PointMaze", ["ours", "ours-no-mods"], preset="quick", out=str(out),
+                     overrides=TINY_OVERRIDES, sweep=sweep,
+                     run={"seeds": SEEDS, "steps": STEPS, "chunk": CHUNK,
+                          "checkpoint_every": CHUNK, "episode_length": EPISODE})
+
+
+def _train(plan, resume=False, chunks=None):
+  with run.open_folder(plan, resume=resume):
+    outputs = [sinks.MetricsCsv(plan.out)]
+    with sinks.closing(outputs):
+      (group,) = plan.groups()
+      return list(itertools.islice(run.run_group(plan, group, outputs, log=lambda _: None),
+                                   chunks))
+
+
+def test_a_group_run_writes_each_variant_and_resumes_exactly(tmp_path):
+  """ours and ours-no-mods as one program: their own rows and checkpoints; stopped after a
+  chunk and resumed, the same metrics.csv as a run that never stopped."""
+  whole = _plan(tmp_path / "whole")
+  assert whole.groups() == [["ours", "ours-no-mods"]]
+  results = _train(whole)
+  assert [r.method for r in results] == ["ours", "ours-no-mods"] * 2
+  assert sorted(os.listdir(tmp_path / "whole" / "checkpoints")) == ["ours", "ours-no-mods"]
+  _train(_plan(tmp_path / "stopped"), chunks=2)  # the first chunk of both, checkpointed
+  _train(run.load_run(str(tmp_path / "stopped")), resume=True)
+  assert ((tmp_path / "whole" / "metrics.csv").read_bytes()
+          == (tmp_path / "stopped" / "metrics.csv").read_bytes())
+
+
+def test_a_sweep_names_its_variants_and_saves_their_values(tmp_path):
+  plan = _plan(tmp_path, sweep={"top.alpha": [(0, 0.4, 0.7), (0, 0.2, 0.35)]})
+  names = ["ours+top.alpha=0,0.4,0.7", "ours+top.alpha=0,0.2,0.35",
+           "ours-no-mods+top.alpha=0,0.4,0.7", "ours-no-mods+top.alpha=0,0.2,0.35"]
+  assert plan.groups() == [names]
+  assert plan.configs[names[1]].top.alpha == (0.0, 0.2, 0.35)
+  with run.open_folder(plan):
+    pass
+  loaded = run.load_run(str(tmp_path))
+  assert loaded.configs == plan.configs and not loaded.warnings
+  assert loaded.variants[names[3]] == {"method": "ours-no-mods",
+                                       "overrides": {"top.alpha": [0, 0.2, 0.35]}}
+
+
+def test_a_run_from_before_variants_resumes_its_methods_one_after_another(tmp_path):
+  """Its methods may stand at different steps: they keep running alone, as they ran."""
+  with run.open_folder(_plan(tmp_path)):
+    pass
+  payload = plan_lib.read_config(str(tmp_path))
+  del payload["grouped"], payload["variants"]
+  assert plan_lib.from_json(payload, str(tmp_path)).groups() == [["ours"], ["ours-no-mods"]]
