@@ -1,5 +1,6 @@
 """The notebooks run top to bottom (nbclient), with their settings cell swapped for a tiny run."""
 
+import csv
 import os
 
 import nbformat
@@ -57,3 +58,19 @@ def test_paper_figures_from_a_results_folder(quickstart, tmp_path, monkeypatch):
   assert len(_outputs(nb, "image/png")) == 3
   assert sorted(os.listdir(figures))[:2] == ["pointmaze_iqm.pdf", "pointmaze_iqm.png"]
   assert "summary.md" in os.listdir(figures)
+
+
+def test_sweep_notebook_runs_alpha_as_lanes_of_one_program(tmp_path, monkeypatch):
+  out = str(tmp_path / "sweep")
+  sweep = {"top.alpha": [(0.0, 0.4, 0.7), (0.0, 0.8, 1.4)]}
+  nb = _execute("sweep_alpha.ipynb", f'TASK = "PointMaze"\nOUT = {out!r}\nRUN = {TINY_SIZE!r}\n'
+                f'OVERRIDES = {TINY_OVERRIDES!r}\nSWEEP = {sweep!r}', monkeypatch)
+  printed = "".join(o.get("text", "") for c in nb.cells if c.cell_type == "code"
+                    for o in c.get("outputs", []))
+  assert "one program, 2 variants x 2 seeds = 4 lanes" in printed, printed[-2000:]
+  with open(os.path.join(out, "metrics.csv"), newline="") as f:
+    methods = {row["method"] for row in csv.DictReader(f)}
+  assert len(methods) == 2 and all(m.startswith("ours+top.alpha=") for m in methods), methods
+  assert _outputs(nb, "image/png")
+  table = "".join(o["data"]["text/markdown"] for o in _outputs(nb, "text/markdown"))
+  assert table.count("top.alpha=") == 2, table
