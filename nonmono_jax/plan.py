@@ -64,15 +64,10 @@ class Plan:
     """The variants by program, in plan order: those with one static key share a trainer."""
     if not self.grouped:
       return [[name] for name in self.configs]
-    out: list[list[str]] = []
+    by_key: dict = {}  # static key -> its variants (dicts keep the plan's order)
     for name, config in self.configs.items():
-      key = hyper.static_key(config)
-      same = [g for g in out if hyper.static_key(self.configs[g[0]]) == key]
-      if same:
-        same[0].append(name)
-      else:
-        out.append([name])
-    return out
+      by_key.setdefault(hyper.static_key(config), []).append(name)
+    return list(by_key.values())
 
   def trainer(self, names) -> train.Trainer:
     """The trainer of a variant or a group of them, built once (the memory check and the run
