@@ -154,27 +154,31 @@ def plan_from_args(task: str, args: argparse.Namespace) -> plan_lib.Plan:
 
 
 def parse_sweep(given) -> dict:
-  """``[["top.alpha=0,0.4,0.7", "0,0.2,0.35"], ...]`` -> {"top.alpha": [(0, 0.4, 0.7), ...]}."""
+  """``[["top.alpha=0,0.4,0.7", "0,0.2,0.35"], ...]`` -> {"top.alpha": [(0, 0.4, 0.7), ...]};
+  each value parsed by its field's type, as the field's own flag parses it."""
+  types = dict(_fields(config_lib.AgentConfig))
   sweep = {}
   for tokens in given or []:
     path, sep, first = tokens[0].partition("=")
     if not sep or not path:
       raise ValueError(f"--sweep takes FIELD=VALUE [VALUE ...], got {' '.join(tokens)}")
+    if path not in types:
+      raise ValueError(f"--sweep {path}: not a config field with a value (see --help)")
     if path in sweep:
       raise ValueError(f"--sweep {path} is given twice")
-    texts = [first] + tokens[1:]
-    sweep[path] = [tuple(map(_number, t.split(","))) if "," in t else _number(t) for t in texts]
+    try:
+      sweep[path] = [_typed(types[path], text) for text in [first] + tokens[1:]]
+    except (ValueError, argparse.ArgumentTypeError) as e:
+      raise ValueError(f"--sweep {path}: {e}") from None
   return sweep
 
 
-def _number(text: str):
-  """A sweep value: an int, a float, true/false, else the text."""
-  for kind in (int, float):
-    try:
-      return kind(text)
-    except ValueError:
-      pass
-  return {"true": True, "false": False}.get(text.lower(), text)
+def _typed(t, text: str):
+  """A field's value from text by its type: a sequence's entries joined by commas."""
+  if typing.get_origin(t) in (tuple, list, collections.abc.Sequence):
+    elem = typing.get_args(t)[0]
+    return tuple(elem(x) for x in text.split(","))
+  return _bool(text) if t is bool else t(text)
 
 
 # --- the command: checks, the run folder, the run ----------------------------------------------

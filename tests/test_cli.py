@@ -290,3 +290,19 @@ def test_a_widened_run_resumes_with_its_saved_plan(tmp_path):
   assert plan.configs["ours"].num_envs == 4 and plan.spec.steps == 10_000
   with pytest.raises(ValueError, match="--grad-steps needs --envs-per-seed"):
     cli.plan_from_args("PointMaze", cli.make_parser("PointMaze").parse_args(["--grad-steps", "2"]))
+
+
+def test_sweep_values_are_parsed_by_their_fields_types():
+  sweep = cli.parse_sweep([["top.alpha=0,0.4,0.7", "0,0.2,0.35"], ["top.reward_mod=true", "no"],
+                           ["c=5", "10"]])
+  assert sweep == {"top.alpha": [(0.0, 0.4, 0.7), (0.0, 0.2, 0.35)],
+                   "top.reward_mod": [True, False], "c": [5, 10]}
+  assert isinstance(sweep["top.alpha"][0][0], float) and isinstance(sweep["c"][0], int)
+  for given, message in (([["top.x=1"]], "--sweep top.x: not a config field"),
+                         ([["c=1.5"]], "--sweep c: invalid literal"),
+                         ([["top.reward_mod=maybe"]], "--sweep top.reward_mod: expected true"),
+                         ([["top.alpha"]], "--sweep takes FIELD=VALUE"),
+                         ([["c=5"], ["c=6"]], "--sweep c is given twice")):
+    with pytest.raises(ValueError) as e:
+      cli.parse_sweep(given)
+    assert str(e.value).startswith(message), e.value
