@@ -143,6 +143,22 @@ class AgentConfig:
   def uses_middle_ppo(self) -> bool:
     return self.switch == "top" or (self.switch == "homeostasis" and self.explore_mode == "ppo")
 
+  def reads(self, path: str) -> bool:
+    """Whether the agent this config builds reads the field at dotted ``path``: the Top's
+    fields only with switch "top" (alpha only with the reward modification), the homeostasis
+    switch's only with switch "homeostasis", the Middle PPO's only where it exists. A sweep
+    of a field a method does not read would run identical lanes (``plan.new_run`` drops it)."""
+    unread = []
+    if self.switch != "top":
+      unread.append("top")
+    elif not self.top.reward_mod:
+      unread.append("top.alpha")
+    if self.switch != "homeostasis":
+      unread += ["homeostasis", "explore_mode"]
+    if not self.uses_middle_ppo:
+      unread += ["middle_ppo", "middle_ppo_every"]
+    return not any(path == u or path.startswith(u + ".") for u in unread)
+
   @property
   def middle_rollout_length(self) -> int:
     return self.middle_ppo_every // self.c

@@ -98,9 +98,16 @@ def new_run(task: str, method_names, preset: str = "paper", out: str | None = No
   if grad_steps is not None and envs_per_seed is None:
     raise ValueError("--grad-steps needs --envs-per-seed")
   validation.check_value("--seed", seed)
+
+  def configured(variants):
+    return {name: preset_config(preset, v["method"], task, {**overrides, **v["overrides"]},
+                                envs_per_seed, grad_steps) for name, v in variants.items()}
+
   variants = sweep_variants(method_names, sweep or {})
-  specs = {name: preset_config(preset, v["method"], task, {**overrides, **v["overrides"]},
-                               envs_per_seed, grad_steps) for name, v in variants.items()}
+  specs = configured(variants)
+  if sweep:
+    variants = _read_only(variants, {name: c for name, (c, _) in specs.items()}, sweep)
+    specs = configured(variants)
   spec = _resized(next(iter(specs.values()))[1], run or {})
   configs = {name: sized_for_run(c, spec, {**overrides, **variants[name]["overrides"]})
              for name, (c, _) in specs.items()}
@@ -126,9 +133,28 @@ def sweep_variants(method_names, sweep: dict) -> dict:
   for method in method_names:
     for point in itertools.product(*(sweep[p] for p in paths)):
       values = dict(zip(paths, point))
-      name = "+".join([method] + [f"{p}={_named(v)}" for p, v in values.items()])
-      out[name] = {"method": method, "overrides": values}
+      out[_variant_name(method, values)] = {"method": method, "overrides": values}
   return out
+
+
+def _read_only(variants: dict, configs: dict, sweep: dict) -> dict:
+  """``variants`` without the swept paths their method does not read (``AgentConfig.reads``):
+  HIRO in a sweep of top.alpha runs once, named ``hiro``, not once per value; a swept path
+  that no method reads is a ValueError."""
+  for path in sweep:
+    if not any(c.reads(path) for c in configs.values()):
+      methods_ = sorted({v["method"] for v in variants.values()})
+      raise ValueError(f"--sweep {path}: not read by {', '.join(methods_)} (every lane would "
+                       f"be the same)")
+  out = {}
+  for name, v in variants.items():
+    kept = {p: x for p, x in v["overrides"].items() if configs[name].reads(p)}
+    out.setdefault(_variant_name(v["method"], kept), {"method": v["method"], "overrides": kept})
+  return out
+
+
+def _variant_name(method: str, values: dict) -> str:
+  return "+".join([method] + [f"{p}={_named(v)}" for p, v in values.items()])
 
 
 def _named(value) -> str:

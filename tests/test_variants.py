@@ -9,6 +9,7 @@ import pytest
 
 import envs
 from nonmono_jax import hyper, methods, run, sinks, train
+from nonmono_jax.config import AgentConfig
 from nonmono_jax import plan as plan_lib
 from tests.tests_support import TINY_OVERRIDES
 
@@ -114,17 +115,37 @@ def test_a_group_run_writes_each_variant_and_resumes_exactly(tmp_path):
 
 
 def test_a_sweep_names_its_variants_and_saves_their_values(tmp_path):
-  plan = _plan(tmp_path, sweep={"top.alpha": [(0, 0.4, 0.7), (0, 0.2, 0.35)]})
-  names = ["ours+top.alpha=0,0.4,0.7", "ours+top.alpha=0,0.2,0.35",
-           "ours-no-mods+top.alpha=0,0.4,0.7", "ours-no-mods+top.alpha=0,0.2,0.35"]
+  plan = _plan(tmp_path, sweep={"top.s_o": [(0.6, 0.6, 0.6), (0.4, 0.5, 0.6)]})
+  names = ["ours+top.s_o=0.6,0.6,0.6", "ours+top.s_o=0.4,0.5,0.6",
+           "ours-no-mods+top.s_o=0.6,0.6,0.6", "ours-no-mods+top.s_o=0.4,0.5,0.6"]
   assert plan.groups() == [names]
-  assert plan.configs[names[1]].top.alpha == (0.0, 0.2, 0.35)
+  assert plan.configs[names[1]].top.s_o == (0.4, 0.5, 0.6)
   with run.open_folder(plan):
     pass
   loaded = run.load_run(str(tmp_path))
   assert loaded.configs == plan.configs and not loaded.warnings
   assert loaded.variants[names[3]] == {"method": "ours-no-mods",
-                                       "overrides": {"top.alpha": [0, 0.2, 0.35]}}
+                                       "overrides": {"top.s_o": [0.4, 0.5, 0.6]}}
+
+
+def test_a_sweep_runs_a_method_once_where_it_does_not_read_the_swept_field(tmp_path):
+  """HIRO has no Top and ours-no-mods no alpha: a sweep of top.alpha would run their seeds
+  as identical lanes, once per value."""
+  alphas = [(0, 0.4, 0.7), (0, 0.2, 0.35)]
+  plan = run.new_run("PointMaze", ["ours", "ours-no-mods", "hiro"], preset="quick",
+                     out=str(tmp_path), sweep={"top.alpha": alphas, "top.s_o": [(0.6,) * 3]})
+  assert list(plan.configs) == ["ours+top.alpha=0,0.4,0.7+top.s_o=0.6,0.6,0.6",
+                                "ours+top.alpha=0,0.2,0.35+top.s_o=0.6,0.6,0.6",
+                                "ours-no-mods+top.s_o=0.6,0.6,0.6", "hiro"]
+  assert plan.configs["ours-no-mods+top.s_o=0.6,0.6,0.6"].top.alpha == (0.0, 0.4, 0.7)  # preset
+  assert plan.configs["hiro"] == run.new_run("PointMaze", ["hiro"], preset="quick",
+                                             out=str(tmp_path)).configs["hiro"]
+  with pytest.raises(ValueError, match="--sweep top.alpha: not read by hiro"):
+    run.new_run("PointMaze", ["hiro"], preset="quick", out=str(tmp_path),
+                sweep={"top.alpha": alphas})
+  assert AgentConfig(switch="homeostasis", explore_mode="random").reads("homeostasis.rho")
+  assert not AgentConfig(switch="homeostasis", explore_mode="random").reads("middle_ppo.clip")
+  assert AgentConfig(switch="homeostasis", explore_mode="ppo").reads("middle_ppo.clip")
 
 
 def test_a_run_from_before_variants_resumes_its_methods_one_after_another(tmp_path):
