@@ -52,7 +52,8 @@ def variants(rows, task) -> list[str]:
   names = list(dict.fromkeys(r["method"] for r in rows if r["task"] == task))
   return [v for m in LABELS for v in names if v.partition("+")[0] == m]
 SUMMARY_NOTE = (
-    "Final S_E (at the last evaluation) and best S_E (the maximum over evaluations) per seed, "
+    "Final S_E (at the last evaluation), best S_E (the maximum over evaluations) and early "
+    "S_E (at the last evaluation by a quarter of the run, its env step in brackets) per seed, "
     "as the interquartile mean over seeds with a 95% stratified-bootstrap percentile interval "
     "({reps} replicates); P(ours > method): the probability that a seed of ours ends with a "
     "higher final S_E than a seed of the method (ties count 1/2), with its interval "
@@ -153,8 +154,15 @@ def _at_end(rows, task, method, column, reps):
   return stats.interval(stats.iqm, values[:, -1], reps=reps) if len(steps) else None
 
 
+def _early(steps) -> int:
+  """The index of the last evaluation at or before a quarter of the run (the first if none):
+  where the study reads "HIRO best early"."""
+  return max(int(np.searchsorted(steps, steps[-1] / 4, side="right")) - 1, 0)
+
+
 def summary(rows, reps: int = stats.REPS) -> list[dict]:
-  """Per task and method: the final S_E (at the last evaluation) and best S_E (the maximum over
+  """Per task and method: the final S_E (at the last evaluation), the early S_E (at the last
+  evaluation by a quarter of the run, ``early_step``) and best S_E (the maximum over
   evaluations) of every seed as (IQM, lower, upper), a 95 % stratified-bootstrap interval;
   ``p_ours``: P(ours > method) on final S_E, with its interval (None for ours or without it);
   per mode, the same IQM and interval at the last row of the cumulative env steps, and of the
@@ -170,7 +178,10 @@ def summary(rows, reps: int = stats.REPS) -> list[dict]:
       counts = {f"{name}_{mode}": _at_end(rows, task, m, f"cum_{name}_{mode}", reps)
                 for name in ("steps", "decisions_after_start", "steps_after_start")
                 for mode in MODES}
+      early = _early(steps)
       out.append({"task": task, "method": m, "seeds": len(values), "env_steps": int(steps[-1]),
+                  "early_step": int(steps[early]),
+                  "early_s_e": stats.interval(stats.iqm, values[:, early], reps=reps),
                   "final_s_e": stats.interval(stats.iqm, values[:, -1], reps=reps),
                   "best_s_e": stats.interval(stats.iqm, values.max(1), reps=reps),
                   "p_ours": None, **counts})
@@ -200,14 +211,15 @@ def _mode_cells(r) -> list[str]:
 
 def markdown_table(summary_rows) -> str:
   lines = ["| task | method | runs | env steps | final S_E, IQM [95% CI] | best S_E, IQM "
-           "[95% CI] | P(ours > method), final S_E [95% CI] | "
+           "[95% CI] | early S_E (env step), IQM [95% CI] | P(ours > method), final S_E [95% CI] | "
            + " | ".join(f"{m} decisions after the starting mode, IQM [95% CI] (env steps)"
                         for m in MODES) + " |",
-           "|---|---|---|---|---|---|---|---|---|---|"]
+           "|---|---|---|---|---|---|---|---|---|---|---|"]
   for r in summary_rows:
     lines.append(
         f"| {r['task']} | {label(r['method'])} | {r['seeds']} | {r['env_steps']} | "
         f"{_interval_cell(r['final_s_e'])} | {_interval_cell(r['best_s_e'])} | "
+        f"{_interval_cell(r['early_s_e'])} ({r['early_step']}) | "
         f"{_interval_cell(r['p_ours'])} | {' | '.join(_mode_cells(r))} |")
   return "\n".join(lines)
 

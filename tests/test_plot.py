@@ -60,6 +60,11 @@ def test_summary_gives_iqm_intervals_and_probability_of_improvement(runs):
   # ties three of ours (1.5) and beats 0.8 and 0.9: 21.5 / 25 = 0.86.
   assert hiro["p_ours"][0] == pytest.approx(0.86)
   assert ours["p_ours"] is None
+  # early S_E: no evaluation by a quarter of the run (step 100), so the first (step 200):
+  # ours 0, 0, 0.2, 0, 0.1 -> mean(0, 0, 0.1); hiro 0, 0, 0, 0, 0.4 -> 0.
+  assert ours["early_step"] == hiro["early_step"] == 200
+  assert ours["early_s_e"][0] == pytest.approx(0.1 / 3) and hiro["early_s_e"][0] == 0.0
+  assert plot._early(np.array([2, 4, 6, 8, 10, 12, 14, 16])) == 1  # 4 <= 16 / 4
   # ours-no-mods ends at 0.5, 0.5, 0: every pair with ours is won by ours.
   assert ablation["p_ours"] == (1.0, 1.0, 1.0)
 
@@ -72,13 +77,13 @@ def test_table_summary_file_and_figures(runs, tmp_path, capsys):
   line = next(l for l in printed.splitlines() if l.startswith("| PointMaze | HIRO |"))
   cells = [c.strip() for c in line.strip("|").split("|")]
   assert cells[2:4] == ["5", "400"]
-  assert cells[6].startswith("0.86 [")
+  assert cells[6].endswith("(200)") and cells[7].startswith("0.86 [")
   # mode counts after the starting mode at the last row: TD3 24 + seed decisions for seeds
   # 0-4 (240 + 10 seed env steps), IQM mean(25, 26, 27) = 26 (260), the interval within
   # [24, 28]; PPO 12 + seed, IQM 14 (140); RANDOM 4 + seed, IQM 6 (60).
-  low, high = (int(x) for x in cells[7].split("[")[1].split("]")[0].split(", "))
-  assert cells[7].startswith("26 [") and cells[7].endswith("] (260)") and 24 <= low < high <= 28
-  assert cells[8].startswith("14 [") and cells[9].endswith("] (60)")
+  low, high = (int(x) for x in cells[8].split("[")[1].split("]")[0].split(", "))
+  assert cells[8].startswith("26 [") and cells[8].endswith("] (260)") and 24 <= low < high <= 28
+  assert cells[9].startswith("14 [") and cells[10].endswith("] (60)")
   assert "| PointMaze | Ours | 5 | 400 | 0.97 [" in printed and "| n/a |" in printed
   summary = (out / "summary.md").read_text()
   assert "stratified-bootstrap" in summary and line in summary
