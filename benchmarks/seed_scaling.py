@@ -13,6 +13,12 @@ sizes by ``td3_flops``) and the GFLOP/s that the measured rate achieves.
 
     python -m benchmarks.seed_scaling                                  # point preset
     python -m benchmarks.seed_scaling --methods hiro --hidden 300 300 --seeds 1 16 --chunk 50
+    python -m benchmarks.seed_scaling --cpu-devices 2 --seeds 2 16    # lanes split over 2 devices
+
+``--cpu-devices N`` starts JAX with N CPU devices (``run.use_cpu_devices``, the experiments'
+``--cpu-devices``) and splits every trainer's seeds over them, so each seed count must be a
+multiple of N; compare its rows with a run of the default one device made just before or
+after (the device count is fixed per process).
 
 Writes ``benchmarks/results/seed_scaling_<platform>_<date>.json``.
 """
@@ -27,7 +33,7 @@ import jax
 
 from benchmarks import common
 from benchmarks.profile_step import make_point_trainer
-from nonmono_jax import hierarchy, methods
+from nonmono_jax import hierarchy, methods, run
 
 
 def matmul_gflops(n: int = 1024, repeats: int = 10) -> float:
@@ -95,7 +101,7 @@ def measure(env_name, method, seeds, hidden, chunk, repeats, roofline) -> list[d
     rate, cpu_rate = p["seeds"] * chunk / p["wall"], p["seeds"] * chunk / p["cpu"]
     rows.append({
         "env": env_name, "method": method, "hidden": list(hidden) if hidden else "preset",
-        "seeds": p["seeds"], "env_steps_per_s": rate, "env_steps_per_cpu_s": cpu_rate,
+        "seeds": p["seeds"], "devices": jax.device_count(), "env_steps_per_s": rate, "env_steps_per_cpu_s": cpu_rate,
         "vs_first": rate / (one["seeds"] * chunk / one["wall"]),
         "cpu_vs_first": cpu_rate / (one["seeds"] * chunk / one["cpu"]),
         "mflop_per_env_step": p["flops"] / 1e6, "gflops": rate * p["flops"] / 1e9,
@@ -114,8 +120,11 @@ def main(argv=None):
                  help="Low and Middle TD3 layers (default: the task's preset)")
   p.add_argument("--chunk", type=int, default=500, help="env steps per timed call")
   p.add_argument("--repeats", type=int, default=3)
+  p.add_argument("--cpu-devices", type=int, default=1, metavar="N",
+                 help="split the seeds over N CPU devices (each --seeds a multiple of N)")
   p.add_argument("--out", default=common.RESULTS)
   args = p.parse_args(argv)
+  run.use_cpu_devices(args.cpu_devices)
   roofline = matmul_gflops()
   print(f"matmul roofline (1024^3 float32, jitted): {roofline:.1f} GFLOP/s", flush=True)
   rows = []
@@ -124,7 +133,8 @@ def main(argv=None):
       rows += measure(name, method, args.seeds, args.hidden, args.chunk, args.repeats,
                       roofline)
       for r in rows[-len(args.seeds):]:
-        print(f"{name:9s} {method:5s} {str(r['hidden']):10s} seeds {r['seeds']:3d}: "
+        print(f"{name:9s} {method:5s} {str(r['hidden']):10s} seeds {r['seeds']:3d} on "
+              f"{r['devices']} device(s): "
               f"{r['env_steps_per_s']:7.0f} env steps/s ({r['vs_first']:.2f}x), "
               f"{r['env_steps_per_cpu_s']:7.0f} per CPU-s ({r['cpu_vs_first']:.2f}x), "
               f"{r['gflops']:.1f} GFLOP/s of {roofline:.0f}", flush=True)

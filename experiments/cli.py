@@ -136,6 +136,10 @@ def make_parser(task: str) -> argparse.ArgumentParser:
   p.add_argument("--time-limit", type=float, default=None, metavar="SECONDS",
                  help="stop, checkpointed, before a chunk that would end past this many seconds "
                       f"of wall time; exit code {EXIT_TIME_LIMIT}, continue with --resume")
+  p.add_argument("--cpu-devices", type=int, default=None, metavar="N",
+                 help="on the CPU, split the lanes over N devices, e.g. one per core (about "
+                      "1.8x faster at 16 seeds on 2 cores; --seeds a multiple of N; not "
+                      "bit-identical to 1 device); --resume uses the run's count")
   p.add_argument("--no-progress", action="store_true", help="no progress bar")
   p.add_argument("--tensorboard", action="store_true",
                  help="also write TensorBoard event files to OUT/tensorboard/<method>")
@@ -187,6 +191,7 @@ def main(task: str, argv=None) -> int:
   parser = make_parser(task)
   args = parser.parse_args(argv)
   try:
+    _use_cpu_devices(args)
     plan = _plan(task, args, argv)
     plan_lib.check_memory(plan)
   except ValueError as e:
@@ -198,6 +203,18 @@ def main(task: str, argv=None) -> int:
       return _run(plan, args)
   except (run.BadFolder, runlock.Locked, io.MetricsError, io.CheckpointError) as e:
     parser.error(str(e))
+
+
+def _use_cpu_devices(args: argparse.Namespace) -> None:
+  """The CPU device count, before JAX starts: ``--cpu-devices``, or on ``--resume`` the count
+  the run trained on (``config.json``), so that it continues as it ran."""
+  n = args.cpu_devices
+  if args.resume:
+    payload = plan_lib.read_config(args.resume)
+    if isinstance(payload, dict) and payload.get("platform") == "cpu":
+      n = payload.get("device_count")
+  if isinstance(n, int):
+    run.use_cpu_devices(n)
 
 
 def _plan(task: str, args: argparse.Namespace, argv) -> plan_lib.Plan:

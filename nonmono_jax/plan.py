@@ -229,7 +229,7 @@ def check_plan(task: str, spec: methods.RunSpec, configs: dict) -> None:
     validation.check_value(f"--steps x num_envs of {method}", spec.steps * config.num_envs)
   if spec.seeds % jax.device_count():
     raise ValueError(f"--seeds ({spec.seeds}) must be a multiple of the device count "
-                     f"({jax.device_count()})")
+                     f"({jax.device_count()}; see --cpu-devices)")
 
 
 def state_bytes(plan: Plan, names) -> int:

@@ -1,5 +1,6 @@
 """The experiment command: good and bad input, run folders, resume equivalence, kill and resume."""
 
+import argparse
 import csv
 import json
 import os
@@ -132,6 +133,33 @@ def test_time_limit_stops_checkpointed_and_resume_completes_the_run(reference, t
   assert _bytes(out) == _bytes(reference)  # one line ending, whatever the resume history
 
 
+def test_cpu_devices_cannot_change_once_jax_runs(tmp_path, capsys):
+  """This process's JAX runs on one CPU device (conftest.py); tests/test_sharding.py starts a
+  process on two."""
+  import jax
+  assert jax.device_count() == 1  # JAX started here, whatever ran before in this worker
+  with pytest.raises(SystemExit) as err:
+    cli.main("PointMaze", ["--cpu-devices", "2", "--out", str(tmp_path / "run")])
+  assert err.value.code == 2
+  assert "--cpu-devices 2: JAX has already started with 1 CPU device" in capsys.readouterr().err
+  assert not (tmp_path / "run").exists()
+
+
+def test_resume_uses_the_cpu_device_count_the_run_trained_on(tmp_path, monkeypatch):
+  """A run split over 2 CPU devices continues on 2 (its rounding depends on the split), one
+  on a GPU leaves the CPU count alone, and a new run takes --cpu-devices."""
+  calls = []
+  monkeypatch.setattr(cli.run, "use_cpu_devices", calls.append)
+  for name, payload in (("cpu2", {"platform": "cpu", "device_count": 2}),
+                        ("gpu", {"platform": "gpu", "device_count": 4})):
+    (tmp_path / name).mkdir()
+    (tmp_path / name / "config.json").write_text(json.dumps(payload))
+    cli._use_cpu_devices(argparse.Namespace(resume=str(tmp_path / name), cpu_devices=None))
+  cli._use_cpu_devices(argparse.Namespace(resume=None, cpu_devices=3))
+  cli._use_cpu_devices(argparse.Namespace(resume=None, cpu_devices=None))
+  assert calls == [2, 3]
+
+
 def test_clock_estimates_the_next_chunk_by_the_last(tmp_path):
   path = str(tmp_path / "timing.json")
   clock = cli.Clock.starting_now(100.0, path)
@@ -156,6 +184,7 @@ def test_clock_estimates_the_next_chunk_by_the_last(tmp_path):
     (["--steps", "1001", "--chunk", "1000"], "must be a multiple of --chunk"),
     (["--horizon", "5"], "unrecognized arguments"),
     (["--low.batch_size", "many"], "invalid int value"),
+    (["--cpu-devices", "0"], "--cpu-devices must be >= 1"),
 ])
 def test_bad_input_exits_2_naming_the_field_and_writes_nothing(tmp_path, capsys, argv, message):
   out = tmp_path / "run"

@@ -1,7 +1,7 @@
 """The seed axis sharded across devices gives the same training as one device.
 
-Runs in a subprocess because the host-device count (``XLA_FLAGS``) is fixed when jax starts;
-the session's jax has one CPU device (``conftest.py``).
+Runs in a subprocess because the CPU device count (``run.use_cpu_devices``, ``--cpu-devices``)
+is fixed when jax starts; the session's jax has one CPU device (``conftest.py``).
 """
 
 import os
@@ -13,13 +13,14 @@ from tests_support import CACHE_DIR, ROOT
 
 SCRIPT = textwrap.dedent("""
     import os
-    os.environ["XLA_FLAGS"] = "--xla_force_host_platform_device_count=2"
     import jax, numpy as np
     jax.config.update("jax_compilation_cache_dir", os.environ["CACHE"])
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
     import envs
-    from nonmono_jax import methods, td3, train
+    from nonmono_jax import methods, run, td3, train
+    run.use_cpu_devices(2)  # what --cpu-devices 2 does, before JAX runs anything
     assert jax.device_count() == 2
+    run.use_cpu_devices(2)  # again, once JAX runs: the same count is fine
     env = envs.make("PointMaze", episode_length=20)
     small = td3.TD3Config(hidden=(16, 16), batch_size=8, buffer_size=200)
     config = methods.make_config("hiro", "PointMaze", c=5, warmup_steps=20, eval_every=20,
@@ -44,7 +45,6 @@ SCRIPT = textwrap.dedent("""
 
 def test_seed_axis_sharded_on_two_devices_matches_one():
   env = {**os.environ, "CACHE": CACHE_DIR, "PYTHONPATH": ROOT}
-  env.pop("XLA_FLAGS", None)
   res = subprocess.run([sys.executable, "-c", SCRIPT], cwd=ROOT, env=env, capture_output=True,
                        text=True, timeout=600)
   assert res.returncode == 0, res.stdout + res.stderr[-4000:]
