@@ -100,12 +100,11 @@ class Clock:
 
 # --- the run folder ------------------------------------------------------------------------------
 
-@contextlib.contextmanager
 def use_cpu_devices(n: int) -> None:
   """Split a run's lanes over ``n`` CPU devices (``jax_num_cpu_devices``; the trainer shards
   its lanes over ``jax.devices()``, ``train.py``): one per core lets the cores run lanes side
   by side, where one device leaves the second core mostly idle (``benchmarks/cpu_profile.md``:
-  16 seeds about 1.8x faster on 2 cores). The lanes per device change how XLA:CPU rounds, so
+  16 seeds 1.6x faster than on one device, on 2 cores). The lanes per device change how XLA:CPU rounds, so
   a run on 2 devices does not match the same run on 1 bit for bit. Call it before JAX runs
   anything; a ValueError if JAX has already started its CPU backend with another count."""
   if n < 1:
@@ -119,6 +118,7 @@ def use_cpu_devices(n: int) -> None:
                        f"device(s); set it before any JAX operation") from None
 
 
+@contextlib.contextmanager
 def open_folder(plan: Plan, resume: bool = False):
   """Creates (a new run) and locks (``runlock``) the run folder for the block; a new run's
   must be empty and gets ``config.json``, a resumed one must be complete. Raises BadFolder,
