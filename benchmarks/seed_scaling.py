@@ -101,7 +101,8 @@ def measure(env_name, method, seeds, hidden, chunk, repeats, roofline) -> list[d
     rate, cpu_rate = p["seeds"] * chunk / p["wall"], p["seeds"] * chunk / p["cpu"]
     rows.append({
         "env": env_name, "method": method, "hidden": list(hidden) if hidden else "preset",
-        "seeds": p["seeds"], "devices": jax.device_count(), "env_steps_per_s": rate, "env_steps_per_cpu_s": cpu_rate,
+        "seeds": p["seeds"], "devices": jax.device_count(), "env_steps_per_s": rate,
+        "env_steps_per_cpu_s": cpu_rate,
         "vs_first": rate / (one["seeds"] * chunk / one["wall"]),
         "cpu_vs_first": cpu_rate / (one["seeds"] * chunk / one["cpu"]),
         "mflop_per_env_step": p["flops"] / 1e6, "gflops": rate * p["flops"] / 1e9,

@@ -11,6 +11,7 @@ modes live. Seeds are vmapped; one timed call is a jitted chunk of ``--chunk`` s
     python -m benchmarks.train_throughput --envs PointPush --methods ours --seeds 1 4 16
     python -m benchmarks.train_throughput --num-envs 16        # envs per seed (GPU filling)
     python -m benchmarks.train_throughput --envs AntPush --seeds 1 5 16 --num-envs 1 16 64 256
+    python -m benchmarks.train_throughput --cpu-devices 2 --seeds 4 16   # seeds over 2 CPU devices
 
 With E envs per seed the updates are the paper's per vector step (``num_envs`` alone: one
 Low update per vector step), unless ``--grad-steps U`` is given: then U updates per vector
@@ -35,7 +36,7 @@ import jax
 import envs
 from benchmarks import common
 from benchmarks.common import ALL_MODES_LIVE
-from nonmono_jax import methods, train
+from nonmono_jax import methods, run, train
 from nonmono_jax.config import override
 
 
@@ -70,7 +71,8 @@ def measure(env_name: str, method: str, seeds: int, num_envs: int, chunk: int,
     t0 = time.perf_counter()
     jax.block_until_ready(evaluate(states.low.params, states.middle.params, key))
     eval_s = time.perf_counter() - t0
-  return {"env": env_name, "method": method, "seeds": seeds, "envs_per_seed": num_envs,
+  return {"env": env_name, "method": method, "seeds": seeds, "devices": jax.device_count(),
+          "envs_per_seed": num_envs,
           "low_updates": config.low_updates, "low_batch": config.low.batch_size,
           "env_steps_per_s": seeds * num_envs * chunk / best, "compile_s": compile_s,
           "first_chunk_s": first_s, "timed_steps_per_seed": chunk * num_envs,
@@ -91,8 +93,11 @@ def main(argv=None):
                  help="U = E for every E: the paper's TD3 updates per env step exactly")
   p.add_argument("--chunk", type=int, default=200, help="env steps per timed call")
   p.add_argument("--repeats", type=int, default=2)
+  p.add_argument("--cpu-devices", type=int, default=1, metavar="N",
+                 help="split the seeds over N CPU devices (each --seeds a multiple of N)")
   p.add_argument("--out", default=common.RESULTS)
   args = p.parse_args(argv)
+  run.use_cpu_devices(args.cpu_devices)
   settings = ("paper: Low TD3 update every vector step (batch 100, 300-300), Middle TD3 + "
               "relabelling every 10 steps; ours: + Middle PPO every 30, Top PPO every 400, "
               "Top mode every 50; warm-up and starting mode 0; evaluation timed apart")
@@ -114,7 +119,7 @@ def main(argv=None):
           r = measure(name, method, s, e, args.chunk, args.repeats, time_eval, u)
           rows.append(r)
           mib = r["memory"].get("total", 0) / 2**20
-          print(f"{name:9s} {method:5s} seeds {s:3d} x envs {e:3d}: "
+          print(f"{name:9s} {method:5s} seeds {s:3d} x envs {e:3d} on {r['devices']} device(s): "
                 f"{r['env_steps_per_s']:8.1f} env steps/s (compile {r['compile_s']:.1f} s, "
                 f"first chunk {r['first_chunk_s']:.1f} s, program {mib:.0f} MiB; one "
                 f"evaluation {r['eval_s']} s)", flush=True)

@@ -14,6 +14,7 @@ a NaN or Inf in a learner (``NonFinite``, the last checkpoint is the last good s
 the rows to every sink, checkpoint (the rows are on disk first), yield. A ``Clock`` with a
 time limit stops it before a chunk that would end past the limit (``TimeLimit``, checkpointed),
 after at least one chunk per process. ``run_plan`` runs every method of the plan in turn.
+``use_cpu_devices(n)``, called before JAX runs anything, splits the lanes over n CPU devices.
 """
 
 from __future__ import annotations
@@ -98,7 +99,7 @@ class Clock:
     return time.monotonic() + estimate <= self.deadline
 
 
-# --- the run folder ------------------------------------------------------------------------------
+# --- the process: its CPU devices -----------------------------------------------------------
 
 def use_cpu_devices(n: int) -> None:
   """Split a run's lanes over ``n`` CPU devices (``jax_num_cpu_devices``; the trainer shards
@@ -117,6 +118,8 @@ def use_cpu_devices(n: int) -> None:
       raise ValueError(f"--cpu-devices {n}: JAX has already started with {have} CPU "
                        f"device(s); set it before any JAX operation") from None
 
+
+# --- the run folder ------------------------------------------------------------------------------
 
 @contextlib.contextmanager
 def open_folder(plan: Plan, resume: bool = False):
