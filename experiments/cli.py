@@ -138,7 +138,7 @@ def make_parser(task: str) -> argparse.ArgumentParser:
                       f"of wall time; exit code {EXIT_TIME_LIMIT}, continue with --resume")
   p.add_argument("--cpu-devices", type=int, default=None, metavar="N",
                  help="on the CPU, split the lanes over N devices, e.g. one per core (about "
-                      "1.6x faster at 16 seeds on 2 cores; --seeds a multiple of N; not "
+                      "1.6-2.5x faster at 16 seeds on 2 cores; --seeds a multiple of N; not "
                       "bit-identical to 1 device); --resume uses the run's count")
   p.add_argument("--no-progress", action="store_true", help="no progress bar")
   p.add_argument("--tensorboard", action="store_true",

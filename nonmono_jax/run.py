@@ -105,7 +105,7 @@ def use_cpu_devices(n: int) -> None:
   """Split a run's lanes over ``n`` CPU devices (``jax_num_cpu_devices``; the trainer shards
   its lanes over ``jax.devices()``, ``train.py``): one per core lets the cores run lanes side
   by side, where one device leaves the second core mostly idle (``benchmarks/cpu_profile.md``:
-  on 2 cores, 16 seeds 1.6x faster than on one device). The lanes per device change how
+  on 2 cores, 16 seeds 1.6-2.5x faster than on one device). The lanes per device change how
   XLA:CPU rounds, so a run on 2 devices does not match the same run on 1 bit for bit. Call it
   before JAX runs anything; a ValueError if JAX has already started with another count."""
   if n < 1:
