@@ -289,7 +289,41 @@ def to_json(plan: Plan) -> dict:
           "variants": io.to_jsonable(plan.variants), "grouped": plan.grouped,
           "versions": _versions(), "python": platform.python_version(),
           "device": str(jax.devices()[0].device_kind), "platform": jax.default_backend(),
-          "device_count": jax.device_count(), "command": " ".join(sys.argv)}
+          "device_count": jax.device_count(), "host": host(), "command": " ".join(sys.argv)}
+
+
+# The instruction sets XLA:CPU's code (and its matmul kernels) may use: two CPUs that differ in
+# them round a run differently, so its rows reproduce only on the same kind of CPU.
+ISA_FLAGS = ("sse4_2", "avx", "avx2", "fma", "avx512f", "avx512_vnni", "avx512_bf16", "amx_tile")
+
+
+def host() -> dict:
+  """The machine type a run's rows reproduce on: CPU model (``/proc/cpuinfo``), its
+  instruction sets from ``ISA_FLAGS``, core count and ``XLA_FLAGS``."""
+  info = {}
+  try:
+    with open("/proc/cpuinfo") as f:
+      for line in f:
+        key, _, value = line.partition(":")
+        info.setdefault(key.strip(), value.strip())
+  except OSError:
+    pass
+  flags = set(info.get("flags", "").split())
+  return {"cpu": info.get("model name") or platform.processor() or platform.machine(),
+          "cpu_family": info.get("cpu family"), "cpu_model": info.get("model"),
+          "isa": [f for f in ISA_FLAGS if f in flags], "cores": os.cpu_count(),
+          "xla_flags": os.environ.get("XLA_FLAGS", "")}
+
+
+def host_differs(payload) -> str | None:
+  """What differs between the host that started the run in ``payload`` (``config.json``) and
+  this one, or None (also for runs from before hosts were recorded)."""
+  saved, now = payload.get("host"), host()
+  if not isinstance(saved, dict):
+    return None
+  changed = [f"{k} {saved.get(k)!r} (here {now[k]!r})" for k in now if saved.get(k) != now[k]
+             and k != "cores"]
+  return "; ".join(changed) or None
 
 
 def _versions() -> dict:
@@ -339,6 +373,10 @@ def from_json(payload, out: str, task: str | None = None) -> Plan:
       configs[method], notes = _saved_config(payload, method, spec, overrides, widen)
       warnings += [f"{path}: {method} {note}" for note in notes]
     check_plan(payload["task"], spec, configs)
+    moved = host_differs(payload)
+    if moved:
+      warnings.append(f"{path}: started on another machine type ({moved}): the rows after "
+                      f"this resume are rounded as on this one, so the run as a whole reproduces on neither")
   except (ValueError, TypeError, KeyError) as e:
     raise ValueError(f"{path}: {e}") from None
   return Plan(task=payload["task"], preset=payload["preset"], seed=payload["seed"], out=out,

@@ -176,8 +176,11 @@ def test_an_old_run_folder_resumes_plots_and_renders_with_a_warning(old_run, pre
   payload["overrides"] = {"top": {"starting_steps": 100}, **{
       k: v for k, v in payload["overrides"].items() if k != "top.starting_steps"}}
   del payload["configs"]["ours"]["eval_target_networks"]
+  assert payload["host"] == plan_lib.host()  # the machine type its rows reproduce on
+  payload["host"]["cpu"] = "another CPU"
   io.write_json(path, payload)
   plan = run.load_run(out)
+  assert any("started on another machine type (cpu 'another CPU'" in w for w in plan.warnings)
   assert plan.configs["ours"].top.s_o_start == 0.9  # config.json's, not today's 0.8
   assert any("top.s_o_start 0.9 (today 0.8)" in w for w in plan.warnings)
   assert any("has no eval_target_networks" in w for w in plan.warnings)
