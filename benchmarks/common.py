@@ -10,6 +10,8 @@ import sys
 
 import jax
 
+from nonmono_jax.plan import host
+
 RESULTS = os.path.join(os.path.dirname(__file__), "results")
 # Dotted overrides that time every step with all modes live: no warm-up, no starting mode,
 # evaluation never (timed apart).
@@ -20,7 +22,7 @@ def machine() -> dict:
   dev = jax.devices()[0]
   return {"platform": dev.platform, "device": str(dev.device_kind), "cpu_count": os.cpu_count(),
           "processor": platform.processor() or platform.machine(),
-          "python": platform.python_version(), "jax": jax.__version__}
+          "python": platform.python_version(), "jax": jax.__version__, "host": host()}
 
 
 def write_result(name: str, out_dir: str, argv: list[str] | None, quiet: bool = False,
