@@ -15,12 +15,14 @@ Per task found in the folders' ``metrics.csv`` files:
 - ``<task>_ablation``: S_E of ours and its ablations (IQM with 95 % intervals), where the
   folders hold any of them.
 
-Each is written as PNG and PDF into ``--out`` (default: ``DIR/figures`` of the first folder),
-with ``summary.md``: per task and method, final and best S_E per seed as IQM [95 % CI],
-P(ours > method) [95 % CI] with the study's reading of it, the Middle decisions per mode after
-the starting mode (the paper's unit; env steps in brackets) and the modes' order, then P(A > B)
-for the other pairs the study compares (``PAIRS``: Ref:Uniform against Ref:PPO). ``--table``
-also prints them.
+Each is written as PNG and PDF into ``--out``, or by default into ``DIR/figures`` of the
+first folder that holds the task (so ``plot results/point*`` draws each task into its own
+results folder), with ``summary.md``: per task and method, final and best S_E per seed as IQM
+[95 % CI], P(ours > method) [95 % CI] with the study's reading of it, the Middle decisions per
+mode after the starting mode (the paper's unit; env steps in brackets) and the modes' order,
+then P(A > B) for the other pairs the study compares (``PAIRS``: Ref:Uniform against Ref:PPO),
+then each seed's final S_E and its first evaluation at 0.5 or more (``seeds_table``).
+``--table`` also prints them, for every task.
 """
 
 from __future__ import annotations
@@ -277,11 +279,27 @@ def markdown_table(summary_rows) -> str:
 
 
 def tables(rows, summary_rows=None) -> str:
-  """``markdown_table`` of the summary, then ``pairs_table`` where there are pairs: what
-  ``summary.md`` holds after its note and ``--table`` prints."""
+  """``markdown_table`` of the summary, then ``pairs_table`` where there are pairs, then
+  ``seeds_table``: what ``summary.md`` holds after its note and ``--table`` prints."""
   pairs = pairs_table(comparisons(rows))
-  return markdown_table(summary(rows) if summary_rows is None else summary_rows) + (
-      f"\n\n{pairs}" if pairs else "")
+  return (markdown_table(summary(rows) if summary_rows is None else summary_rows)
+          + (f"\n\n{pairs}" if pairs else "") + f"\n\n{seeds_table(rows)}")
+
+
+def seeds_table(rows) -> str:
+  """Per task and method: each seed's final S_E (seeds in order), how many end at 0.5 or more,
+  and the env step of each seed's first evaluation at 0.5 or more (- for never)."""
+  lines = ["| task | method | final S_E per seed | seeds ending >= 0.5 | first evaluation >= "
+           "0.5 per seed (env step) |", "|---|---|---|---|---|"]
+  for task in sorted({r["task"] for r in rows}):
+    for m in variants(rows, task):
+      steps, values = per_seed(rows, task, m, "eval_success")
+      if not len(steps):
+        continue
+      first = [str(steps[np.argmax(v >= 0.5)]) if (v >= 0.5).any() else "-" for v in values]
+      lines.append(f"| {task} | {label(m)} | {', '.join(f'{x:g}' for x in values[:, -1])} | "
+                   f"{int((values[:, -1] >= 0.5).sum())} of {len(values)} | {', '.join(first)} |")
+  return "\n".join(lines)
 
 
 def pairs_table(comparison_rows) -> str:
@@ -374,14 +392,36 @@ def _ablation_figure(plt, task, curves_, out) -> list[str]:
   return paths
 
 
+def figure_folders(dirs, out=None) -> dict:
+  """Where each task's figures go: {folder: [task, ...]}; ``out`` for all, or else
+  ``DIR/figures`` of the first of ``dirs`` that holds the task."""
+  folders: dict = {}
+  seen = set()
+  for d in dirs:
+    tasks = sorted({r["task"] for r in load([d])} - seen)
+    seen.update(tasks)
+    if tasks:
+      folders.setdefault(out or os.path.join(d, "figures"), []).extend(tasks)
+  return folders
+
+
 def plot(dirs, out=None) -> list[str]:
+  """Every task's figures and a ``summary.md`` per figure folder (``figure_folders``); the
+  files written."""
+  rows = load(dirs)
+  written = []
+  for folder, tasks in figure_folders(dirs, out).items():
+    written += _draw([r for r in rows if r["task"] in tasks], folder)
+  return written
+
+
+def _draw(rows, out) -> list[str]:
+  """The figures of every task in ``rows`` and their ``summary.md`` into folder ``out``."""
   import matplotlib
   matplotlib.use("Agg")
   import matplotlib.pyplot as plt
 
-  rows = load(dirs)
   table = summary(rows)
-  out = out or os.path.join(dirs[0], "figures")
   os.makedirs(out, exist_ok=True)
   written = []
   for task in sorted({r["task"] for r in rows}):
@@ -434,7 +474,9 @@ def plot(dirs, out=None) -> list[str]:
 def main(argv=None) -> int:
   p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
   p.add_argument("dirs", nargs="+", help="run folders (each with a metrics.csv)")
-  p.add_argument("--out", default=None, help="figure folder (default: DIR/figures)")
+  p.add_argument("--out", default=None,
+                 help="figure folder for every task (default: DIR/figures of the first DIR "
+                      "that holds the task)")
   p.add_argument("--table", action="store_true",
                  help="also print a Markdown table of final / best S_E and mode counts")
   args = p.parse_args(argv)

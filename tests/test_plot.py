@@ -22,7 +22,7 @@ S_E = {
 }
 
 
-def _write(folder, methods):
+def _write(folder, methods, task="PointMaze"):
   os.makedirs(folder)
   with open(os.path.join(folder, "metrics.csv"), "w", newline="") as f:
     w = csv.DictWriter(f, COLUMNS, lineterminator="\n")
@@ -32,7 +32,7 @@ def _write(folder, methods):
         for i, step in enumerate(STEPS):
           evaluated = i > 0
           w.writerow({
-              "task": "PointMaze", "method": m, "seed": seed, "env_step": step,
+              "task": task, "method": m, "seed": seed, "env_step": step,
               "eval_success": s_e[i - 1] if evaluated else "",
               "eval_return": -10 * (1 - s_e[i - 1]) if evaluated else "",
               **{f"cum_steps_{mode}": step * k for mode, k in zip(plot.MODES, (6, 3, 1))},
@@ -143,3 +143,22 @@ def test_a_results_tree_of_run_folders_loads_every_run(tmp_path):
   assert len(rows) == len(STEPS) * (len(S_E["ours"]) + len(S_E["hiro"]))
   with pytest.raises(ValueError, match="not found"):
     plot.load([str(tmp_path / "empty")])
+
+
+def test_per_seed_table_gives_final_s_e_and_first_success(runs):
+  table = plot.seeds_table(plot.load(runs)).splitlines()
+  # ours ends at 1, 1, 1, 0.8, 0.9 and first reaches 0.5 at 400, 300, 300, 300, 400
+  assert "| PointMaze | Ours | 1, 1, 1, 0.8, 0.9 | 5 of 5 | 400, 300, 300, 300, 400 |" in table
+  assert "| PointMaze | HIRO | 0, 0, 0, 0, 1 | 1 of 5 | -, -, -, -, 300 |" in table
+
+
+def test_each_task_is_drawn_into_the_first_folder_that_holds_it(tmp_path):
+  # results/<task>/<method>/metrics.csv: `plot results/point*` draws each task into its own
+  maze, fall = tmp_path / "pointmaze", tmp_path / "pointfall"
+  _write(maze / "ours", ["ours"])
+  _write(fall / "ours", ["ours"], task="PointFall")
+  _write(fall / "hiro", ["hiro"], task="PointFall")
+  dirs = [str(fall), str(maze), str(maze / "ours")]
+  assert plot.figure_folders(dirs) == {str(fall / "figures"): ["PointFall"],
+                                       str(maze / "figures"): ["PointMaze"]}
+  assert plot.figure_folders(dirs, out="figs") == {"figs": ["PointFall", "PointMaze"]}
