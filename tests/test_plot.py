@@ -19,6 +19,7 @@ S_E = {
     "ours-no-mods": [(0.0, 0.0, 0.5), (0.0, 0.5, 0.5), (0.0, 0.0, 0.0)],
     "ref-uniform": [(0.0, 0.5, 1.0)] * 3 + [(0.0, 0.0, 0.5)],
     "ref-ppo": [(0.0, 0.0, 0.0)] * 3 + [(0.0, 0.0, 0.5)],
+    "ours-no-loss-mod": [(0.0, 1.0, 0.0), (0.6, 0.2, 0.4), (0.0, 0.0, 0.0)],  # two fall back
 }
 
 
@@ -148,8 +149,15 @@ def test_a_results_tree_of_run_folders_loads_every_run(tmp_path):
 def test_per_seed_table_gives_final_s_e_and_first_success(runs):
   table = plot.seeds_table(plot.load(runs)).splitlines()
   # ours ends at 1, 1, 1, 0.8, 0.9 and first reaches 0.5 at 400, 300, 300, 300, 400
-  assert "| PointMaze | Ours | 1, 1, 1, 0.8, 0.9 | 5 of 5 | 400, 300, 300, 300, 400 |" in table
-  assert "| PointMaze | HIRO | 0, 0, 0, 0, 1 | 1 of 5 | -, -, -, -, 300 |" in table
+  assert "| PointMaze | Ours | 1, 1, 1, 0.8, 0.9 | 5 of 5 | 0 | 400, 300, 300, 300, 400 |" in table
+  assert "| PointMaze | HIRO | 0, 0, 0, 0, 1 | 1 of 5 | 0 | -, -, -, -, 300 |" in table
+  # ours-no-mods: seed 1 reaches 0.5 at 300 and stays; ref-ppo: every seed ends where it got to
+  assert "| PointMaze | Ours w/o both | 0.5, 0.5, 0 | 2 of 3 | 0 | 400, 300, - |" in table
+
+
+def test_per_seed_table_counts_the_seeds_that_fell_back(tmp_path):
+  table = plot.seeds_table(plot.load([_write(tmp_path / "x", ["ours-no-loss-mod"])]))
+  assert "| PointMaze | Ours w/o loss mod. | 0, 0.4, 0 | 0 of 3 | 2 | 300, 200, - |" in table
 
 
 def test_each_task_is_drawn_into_the_first_folder_that_holds_it(tmp_path):
