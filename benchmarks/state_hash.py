@@ -1,0 +1,70 @@
+"""Does a training program give the same bits on another CPU type? A hash of its train state.
+
+    python -m benchmarks.state_hash --label native
+    XLA_FLAGS=--xla_cpu_max_isa=AVX2 python -m benchmarks.state_hash --label native-avx2
+    qemu-x86_64 -cpu EPYC-Rome "$(which python)" -m benchmarks.state_hash --label qemu-EPYC-Rome
+
+Trains ours on PointMaze (the point preset, 2 seeds, a 200-step warm-up and a 300-step
+starting mode, 1500 steps: every level updates) and prints the SHA-256 of every leaf of the
+final train state. Equal hashes: the same bits. Run it on two machines, or here and under
+QEMU's user-mode emulation of another CPU (Debian's ``qemu-user``; about 100x slower, 30 min),
+with the same ``XLA_FLAGS``. XLA:CPU picks its code for the CPU it finds (LLVM's target CPU
+and instruction sets, YNNPACK's kernels), which the emulator reports as the emulated one. The
+result is appended, with the label, the flags and the host, to
+``results/state_hash_<platform>_<date>.json``. ``/proc/cpuinfo`` under QEMU is the real
+host's, so the label is what names the emulated CPU.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import os
+import sys
+import time
+
+import jax
+import numpy as np
+
+import envs
+from benchmarks import common
+from nonmono_jax import methods, train
+
+OVERRIDES = {"warmup_steps": 200, "top.starting_steps": 300, "eval_every": 100_000}
+SEEDS, CHUNK, STEPS = 2, 500, 1500
+
+
+def state_hash() -> str:
+  """SHA-256 (16 hex digits) of the train state after STEPS steps of ours on PointMaze."""
+  config = methods.make_config("ours", "PointMaze", OVERRIDES)
+  trainer = train.make_trainer(envs.make("PointMaze", episode_length=100), config,
+                               num_seeds=SEEDS, chunk_steps=CHUNK)
+  states = trainer.init(jax.random.PRNGKey(0))
+  for t0 in range(0, STEPS, CHUNK):
+    states, _ = trainer.chunk(states, t0)
+  digest = hashlib.sha256()
+  for leaf in jax.tree.leaves(jax.device_get(states)):
+    digest.update(np.ascontiguousarray(np.asarray(leaf)).tobytes())
+  return digest.hexdigest()[:16]
+
+
+def main(argv=None) -> None:
+  p = argparse.ArgumentParser(prog="python -m benchmarks.state_hash", description=__doc__,
+                              formatter_class=argparse.RawDescriptionHelpFormatter)
+  p.add_argument("--label", required=True, help="what this run is, e.g. native, qemu-EPYC-Rome")
+  p.add_argument("--out", default=common.RESULTS)
+  args = p.parse_args(argv)
+  start = time.perf_counter()
+  command = " ".join(["python -m benchmarks.state_hash", *(sys.argv[1:] if argv is None else argv)])
+  entry = {"label": args.label, "command": command, "xla_flags": os.environ.get("XLA_FLAGS", ""),
+           "hash": state_hash(), "seconds": round(time.perf_counter() - start, 1)}
+  print(json.dumps(entry))
+  path = os.path.join(args.out, f"state_hash_{jax.default_backend()}_"
+                                f"{time.strftime('%Y-%m-%d')}.json")
+  entries = json.load(open(path))["entries"] if os.path.exists(path) else []
+  common.write_result("state_hash", args.out, argv, entries=entries + [entry])
+
+
+if __name__ == "__main__":
+  main()
