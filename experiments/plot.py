@@ -322,11 +322,13 @@ def _band(ax, steps, mean, std, label, color=None):
 
 
 def _finish(fig, out, name):
+  """Save ``name`` as PNG and PDF; the PDF without its creation date, so that drawing the same
+  files again writes the same bytes (committed figures change only when the data does)."""
   fig.tight_layout()
   paths = []
   for ext in ("png", "pdf"):
     path = os.path.join(out, f"{name}.{ext}")
-    fig.savefig(path, dpi=150)
+    fig.savefig(path, dpi=150, metadata={"CreationDate": None} if ext == "pdf" else None)
     paths.append(path)
   return paths
 

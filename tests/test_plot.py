@@ -170,3 +170,17 @@ def test_each_task_is_drawn_into_the_first_folder_that_holds_it(tmp_path):
   assert plot.figure_folders(dirs) == {str(fall / "figures"): ["PointFall"],
                                        str(maze / "figures"): ["PointMaze"]}
   assert plot.figure_folders(dirs, out="figs") == {"figs": ["PointFall", "PointMaze"]}
+
+
+def test_drawing_the_same_figure_twice_writes_the_same_bytes(tmp_path):
+  """Committed figures change only when their data does: the PDF carries no creation date."""
+  import matplotlib.pyplot as plt
+  for name in ("a", "b"):
+    fig, ax = plt.subplots(figsize=(2, 2))
+    ax.plot([0, 1], [0, 1])
+    (tmp_path / name).mkdir()
+    plot._finish(fig, str(tmp_path / name), "fig")
+    plt.close(fig)
+  assert b"/CreationDate" not in (tmp_path / "a" / "fig.pdf").read_bytes()
+  for ext in ("png", "pdf"):
+    assert (tmp_path / "a" / f"fig.{ext}").read_bytes() == (tmp_path / "b" / f"fig.{ext}").read_bytes()
