@@ -25,20 +25,28 @@ def machine() -> dict:
           "python": platform.python_version(), "jax": jax.__version__, "host": host()}
 
 
+def command(name: str, argv: list[str] | None) -> str:
+  """The command line that ran benchmark ``name`` (``argv``, or the process's own)."""
+  return " ".join(["python -m", f"benchmarks.{name}", *(sys.argv[1:] if argv is None else argv)])
+
+
+def result_path(name: str, out_dir: str) -> str:
+  """``<out_dir>/<name>_<platform>_<date>.json``: where today's result of ``name`` goes."""
+  return os.path.join(out_dir, f"{name}_{jax.devices()[0].platform}_"
+                               f"{datetime.date.today().isoformat()}.json")
+
+
 def write_result(name: str, out_dir: str, argv: list[str] | None, quiet: bool = False,
                  **payload) -> str:
-  """Write ``<out_dir>/<name>_<platform>_<date>.json`` with the command that made it.
+  """Write ``result_path(name, out_dir)`` with the command that made it.
 
   Benchmarks call it after every row (``quiet``) and once at the end, so a run killed at a
   time limit keeps the rows it measured (``"complete": false`` until the last call).
   """
-  date = datetime.date.today().isoformat()
-  info = machine()
-  args = sys.argv[1:] if argv is None else argv
-  result = {"benchmark": name, "date": date, "machine": info,
-            "command": " ".join(["python -m", f"benchmarks.{name}", *args]), **payload}
+  path = result_path(name, out_dir)
+  result = {"benchmark": name, "date": datetime.date.today().isoformat(), "machine": machine(),
+            "command": command(name, argv), **payload}
   os.makedirs(out_dir, exist_ok=True)
-  path = os.path.join(out_dir, f"{name}_{info['platform']}_{date}.json")
   with open(path + ".tmp", "w") as f:
     json.dump(result, f, indent=2)
   os.replace(path + ".tmp", path)

@@ -21,7 +21,6 @@ import argparse
 import hashlib
 import json
 import os
-import sys
 import time
 
 import jax
@@ -56,12 +55,11 @@ def main(argv=None) -> None:
   p.add_argument("--out", default=common.RESULTS)
   args = p.parse_args(argv)
   start = time.perf_counter()
-  command = " ".join(["python -m benchmarks.state_hash", *(sys.argv[1:] if argv is None else argv)])
-  entry = {"label": args.label, "command": command, "xla_flags": os.environ.get("XLA_FLAGS", ""),
-           "hash": state_hash(), "seconds": round(time.perf_counter() - start, 1)}
+  entry = {"label": args.label, "command": common.command("state_hash", argv),
+           "xla_flags": os.environ.get("XLA_FLAGS", ""), "hash": state_hash(),
+           "seconds": round(time.perf_counter() - start, 1)}
   print(json.dumps(entry))
-  path = os.path.join(args.out, f"state_hash_{jax.default_backend()}_"
-                                f"{time.strftime('%Y-%m-%d')}.json")
+  path = common.result_path("state_hash", args.out)
   entries = json.load(open(path))["entries"] if os.path.exists(path) else []
   common.write_result("state_hash", args.out, argv, entries=entries + [entry])
 
