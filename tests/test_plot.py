@@ -151,7 +151,7 @@ def test_per_seed_table_gives_final_s_e_and_first_success(runs):
   # ours ends at 1, 1, 1, 0.8, 0.9 and first reaches 0.5 at 400, 300, 300, 300, 400
   assert "| PointMaze | Ours | 1, 1, 1, 0.8, 0.9 | 5 of 5 | 0 | 400, 300, 300, 300, 400 |" in table
   assert "| PointMaze | HIRO | 0, 0, 0, 0, 1 | 1 of 5 | 0 | -, -, -, -, 300 |" in table
-  # ours-no-mods: seed 1 reaches 0.5 at 300 and stays; ref-ppo: every seed ends where it got to
+  # ours-no-mods: seeds 0 and 1 reach 0.5 (at 400, 300) and stay; seed 2 never does
   assert "| PointMaze | Ours w/o both | 0.5, 0.5, 0 | 2 of 3 | 0 | 400, 300, - |" in table
 
 
