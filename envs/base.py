@@ -63,6 +63,8 @@ class MazeEnv(Protocol):
 
   def block_positions(self, state: MazeState) -> jax.Array: ...
 
+  def unstable(self, state: MazeState) -> jax.Array: ...
+
 
 @dataclasses.dataclass(frozen=True)
 class EnvConfig:
@@ -93,6 +95,10 @@ class MazeTask:
   @property
   def episode_length(self) -> int:
     return self.config.episode_length
+
+  def unstable(self, state: MazeState) -> jax.Array:
+    """1.0 if the step that made ``state`` left the physics unstable (the run stops on it)."""
+    return jp.zeros((), jp.float32)
 
   def task_metrics(self, xyz: jax.Array) -> dict[str, jax.Array]:
     distance = jp.linalg.norm(xyz - self.target)

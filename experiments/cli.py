@@ -37,6 +37,7 @@ import os
 import sys
 import typing
 
+from envs import ant_maze
 from nonmono_jax import config as config_lib
 from nonmono_jax import io, methods, plan as plan_lib, run, runlock, sinks
 from nonmono_jax.plan import Plan  # noqa: F401 - for callers of plan_from_args
@@ -140,6 +141,11 @@ def make_parser(task: str) -> argparse.ArgumentParser:
                  help="on the CPU, split the lanes over N devices, e.g. one per core (about "
                       "1.6-2.5x faster at 16 seeds on 2 cores; --seeds a multiple of N; not "
                       "bit-identical to 1 device); --resume uses the run's count")
+  if task.startswith("Ant"):
+    p.add_argument("--physics", default="auto", choices=ant_maze.PHYSICS,
+                   help="the ant's physics: c, MuJoCo's C engine called from inside the jitted "
+                        "step (10-25x MJX on a CPU); mjx, the MJX pipeline (for accelerators); "
+                        "auto: c on a CPU, mjx on an accelerator; --resume keeps the run's")
   p.add_argument("--no-progress", action="store_true", help="no progress bar")
   p.add_argument("--tensorboard", action="store_true",
                  help="also write TensorBoard event files to OUT/tensorboard/<method>")
@@ -154,7 +160,8 @@ def plan_from_args(task: str, args: argparse.Namespace) -> plan_lib.Plan:
       task, args.method, preset=args.preset, out=args.out, seed=args.seed, overrides=overrides,
       run={name: getattr(args, name, None) for name in plan_lib.RUN_FIELDS},
       envs_per_seed=getattr(args, "envs_per_seed", None),
-      grad_steps=getattr(args, "grad_steps", None), sweep=parse_sweep(args.sweep))
+      grad_steps=getattr(args, "grad_steps", None), sweep=parse_sweep(args.sweep),
+      physics=getattr(args, "physics", None))
 
 
 def parse_sweep(given) -> dict:
@@ -257,8 +264,9 @@ def _run(plan: plan_lib.Plan, args: argparse.Namespace) -> int:
              sinks.Progress(plan, enabled=not args.no_progress)]
   if args.tensorboard:
     outputs.append(sinks.TensorBoard(plan.out))
+  physics = f", {plan.physics} physics" if plan.physics else ""
   print(f"{plan.task}: {', '.join(plan.configs)} x {plan.spec.seeds} seeds x {plan.spec.steps} "
-        f"steps ({plan.preset}) -> {plan.out}", flush=True)
+        f"steps ({plan.preset}{physics}) -> {plan.out}", flush=True)
   clock = Clock.starting_now(args.time_limit, os.path.join(plan.out, "timing.json"))
   try:
     with run.remembering_ctrl_c(), sinks.closing(outputs):

@@ -21,7 +21,6 @@ import jax
 import jax.numpy as jp
 import numpy as np
 
-import envs
 from nonmono_jax import evaluate, io, plan as plan_lib
 
 
@@ -34,8 +33,8 @@ def rollout(run_dir: str, method: str | None = None, seed: int = 0, key: int = 0
   config, spec = plan.configs[method], plan.spec
   if not 0 <= seed < spec.seeds:
     raise ValueError(f"seed must be in [0, {spec.seeds}), got {seed}")
-  env = envs.make(plan.task, episode_length=spec.episode_length)
   trainer = plan.trainer(method)
+  env = trainer.agent.env
   ckpts = io.Checkpoints(os.path.join(run_dir, "checkpoints", method))
   step = ckpts.latest_step()
   if step is None:

@@ -150,7 +150,8 @@ class Agent:
   chooser: modes.ModeChooser
   init: Callable[[jax.Array], SeedState]
   step: Callable[..., tuple[SeedState, dict]]  # (state, t[, hp]) -> (state, metrics)
-  evaluate: Callable[..., tuple]  # (low params, middle params, key) -> S_E, distance, return
+  evaluate: Callable[..., tuple]  # (low params, middle params, key) -> S_E, distance, return,
+  # unstable steps
 
 
 @dataclasses.dataclass(frozen=True)
@@ -247,7 +248,9 @@ def _act(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys, hp: hyper.Hy
   metrics = {"reward": Metric.mean(step.reward.mean()),
              "success": Metric.mean(step.success.mean()),
              "distance": Metric.mean(env_next.distance.mean()),
-             "low/reward": Metric.mean(low_tr.reward.mean()), **_counts("count", counted)}
+             "low/reward": Metric.mean(low_tr.reward.mean()),
+             "physics/unstable": Metric.sum(jax.vmap(p.env.unstable)(env_next).sum()),
+             **_counts("count", counted)}
   return state, metrics
 
 
@@ -323,9 +326,9 @@ def _evaluation(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys, hp: h
   ran = clock.live & ((clock.t + 1) % p.config.eval_every == 0)
 
   def evaluation(state):
-    s_e, dist, ret = p.evaluate(state.low.params, state.middle.params, keys.eval)
+    s_e, dist, ret, unstable = p.evaluate(state.low.params, state.middle.params, keys.eval)
     return (state.replace(s_e=s_e, eval_distance=dist, eval_return=ret),
-            {"success": s_e, "distance": dist, "return": ret})
+            {"success": s_e, "distance": dist, "return": ret, "unstable": unstable})
 
   state, m = gated(ran, evaluation, state)
   return state, level("eval", m, ran)

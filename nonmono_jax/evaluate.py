@@ -25,8 +25,8 @@ def make_episode(env, c: int, low_act: Callable, middle_act: Callable) -> Callab
 
   ``low_act(params, obs, goal)`` and ``middle_act(params, obs, target)`` are the noiseless
   TD3 policies. Record t (of ``env.episode_length``): after step t the robot's ``pos``,
-  ``success``, ``distance``, ``reward`` and the ``blocks``' centres, and the world point
-  ``goal`` = s[:3] + g that the Low was sent to during step t.
+  ``success``, ``distance``, ``reward``, the ``blocks``' centres and whether the physics went
+  ``unstable``, and the world point ``goal`` = s[:3] + g that the Low was sent to during step t.
   """
   target = jp.asarray(env.target, jp.float32)
 
@@ -42,7 +42,7 @@ def make_episode(env, c: int, low_act: Callable, middle_act: Callable) -> Callab
       g2 = jp.where((t + 1) % c == 0, middle_act(middle_params, s2.obs, target), g2)
       record = {"pos": s2.obs[:hierarchy.GOAL_SIZE], "goal": s.obs[:hierarchy.GOAL_SIZE] + g,
                 "success": s2.success, "distance": s2.distance, "reward": s2.reward,
-                "blocks": env.block_positions(s2)}
+                "blocks": env.block_positions(s2), "unstable": env.unstable(s2)}
       return g2, record
 
     _, records = rollout.unroll(env, s0, act, jp.arange(env.episode_length),
@@ -59,7 +59,8 @@ def acting_params(params, target_networks: bool):
 
 def make_evaluate(env, c: int, low_act: Callable, middle_act: Callable,
                   episodes: int, target_networks: bool = True) -> Callable:
-  """``evaluate(low_params, middle_params, key) -> (S_E, mean final distance, mean return)``.
+  """``evaluate(low_params, middle_params, key) -> (S_E, mean final distance, mean return,
+  unstable steps)``; the last counts the env steps whose physics went unstable (0 normally).
 
   ``low_params`` / ``middle_params`` are the levels' ``TD3Params``; their target actors act
   where ``target_networks`` (the paper's code), else the online actors.
@@ -72,9 +73,9 @@ def make_evaluate(env, c: int, low_act: Callable, middle_act: Callable,
 
     def one(key):
       _, r = episode(low_params, middle_params, key)
-      return r["success"].max(), r["distance"][-1], r["reward"].sum()
+      return r["success"].max(), r["distance"][-1], r["reward"].sum(), r["unstable"].sum()
 
-    success, distance, ret = jax.vmap(one)(jax.random.split(key, episodes))
-    return success.mean(), distance.mean(), ret.mean()
+    success, distance, ret, unstable = jax.vmap(one)(jax.random.split(key, episodes))
+    return success.mean(), distance.mean(), ret.mean(), unstable.sum()
 
   return evaluate

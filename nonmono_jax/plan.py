@@ -32,6 +32,7 @@ import jax
 import numpy as np
 
 import envs
+from envs import ant_maze
 from nonmono_jax import hyper, io, methods, train, validation
 from nonmono_jax.config import AgentConfig, config_from_dict, differences, flatten, get
 from nonmono_jax.config import missing_fields, override
@@ -59,6 +60,13 @@ class Plan:
   # variants with one static key run as one program; False for runs from before (config.json
   # without "grouped"), whose methods ran one after another and resume so
   grouped: bool = True
+  # the ant's physics ("c" or "mjx", envs.ant_maze); None for the point robot (pure JAX). Runs
+  # from before the choice (config.json without "physics") ran on MJX and resume on it.
+  physics: str | None = None
+
+  def env(self):
+    """The run's env: its task, episode length and physics."""
+    return make_env(self.task, self.spec.episode_length, self.physics)
 
   def groups(self) -> list[list[str]]:
     """The variants by program, in plan order: those with one static key share a trainer."""
@@ -74,7 +82,7 @@ class Plan:
     share it): one variant's numbers as constants, a group's as lanes."""
     names = (names,) if isinstance(names, str) else tuple(names)
     if names not in self.trainers:
-      env = envs.make(self.task, episode_length=self.spec.episode_length)
+      env = self.env()
       size = {"num_seeds": self.spec.seeds, "chunk_steps": self.spec.chunk}
       self.trainers[names] = (
           train.make_trainer(env, self.configs[names[0]], **size) if len(names) == 1 else
@@ -87,13 +95,15 @@ class Plan:
 def new_run(task: str, method_names, preset: str = "paper", out: str | None = None,
             seed: int = 0, overrides: dict | None = None, run: dict | None = None,
             envs_per_seed: int | None = None, grad_steps: int | None = None,
-            sweep: dict | None = None) -> Plan:
+            sweep: dict | None = None, physics: str | None = None) -> Plan:
   """The checked plan of a new run: the presets of ``method_names`` on ``task``, widened
   (``methods.widen``), with the dotted ``overrides`` and the run size changes ``run``
   (``steps``, ``seeds``, ``chunk``, ``checkpoint_every``, ``episode_length``); replay buffers
   sized for the run unless an override gives a size. ``sweep`` (dotted path -> list of
-  values; several paths: their grid) makes each method one variant per value. Raises
-  ValueError naming the field."""
+  values; several paths: their grid) makes each method one variant per value. ``physics``:
+  the ant's, ``c``, ``mjx`` or ``auto`` (None: ``auto``). Raises ValueError naming the
+  field."""
+  physics = run_physics(task, physics)
   overrides = flatten(overrides or {})
   if grad_steps is not None and envs_per_seed is None:
     raise ValueError("--grad-steps needs --envs-per-seed")
@@ -119,7 +129,25 @@ def new_run(task: str, method_names, preset: str = "paper", out: str | None = No
   return Plan(task=task, preset=preset, seed=seed, out=out, spec=spec, configs=configs,
               overrides=overrides,
               widen={"envs_per_seed": envs_per_seed, "grad_steps": grad_steps},
-              variants={n: v for n, v in variants.items() if v["overrides"]})
+              variants={n: v for n, v in variants.items() if v["overrides"]}, physics=physics)
+
+
+def run_physics(task: str, physics: str | None) -> str | None:
+  """The physics a new run of ``task`` records: ``c`` or ``mjx`` for the ant (``auto`` and
+  None: ``envs.ant_maze.default_physics``), None for the point robot, which has no choice."""
+  if not task.startswith("Ant"):
+    if physics not in (None, "auto"):
+      raise ValueError(f"--physics: {task} has no physics choice (the point robot is pure JAX)")
+    return None
+  if physics not in (None, *ant_maze.PHYSICS):
+    raise ValueError(f"--physics must be one of {', '.join(ant_maze.PHYSICS)}, got {physics!r}")
+  return ant_maze.default_physics() if physics in (None, "auto") else physics
+
+
+def make_env(task: str, episode_length: int, physics: str | None = None):
+  """``envs.make`` of a run's task: the ant with its ``physics`` (None: ``auto``)."""
+  extra = {"physics": physics} if physics is not None else {}
+  return envs.make(task, episode_length=episode_length, **extra)
 
 
 def sweep_variants(method_names, sweep: dict) -> dict:
@@ -287,6 +315,7 @@ def to_json(plan: Plan) -> dict:
           "overrides": io.to_jsonable(plan.overrides), "widen": plan.widen,
           "configs": {m: io.to_jsonable(c) for m, c in plan.configs.items()},
           "variants": io.to_jsonable(plan.variants), "grouped": plan.grouped,
+          "physics": plan.physics,
           "versions": _versions(), "python": platform.python_version(),
           "device": str(jax.devices()[0].device_kind), "platform": jax.default_backend(),
           "device_count": jax.device_count(), "host": host(), "command": " ".join(sys.argv)}
@@ -373,6 +402,7 @@ def from_json(payload, out: str, task: str | None = None) -> Plan:
       configs[method], notes = _saved_config(payload, method, spec, overrides, widen)
       warnings += [f"{path}: {method} {note}" for note in notes]
     check_plan(payload["task"], spec, configs)
+    physics = saved_physics(payload)
     moved = host_differs(payload)
     if moved:
       warnings.append(f"{path}: started on another machine type ({moved}): the rows after "
@@ -381,7 +411,22 @@ def from_json(payload, out: str, task: str | None = None) -> Plan:
     raise ValueError(f"{path}: {e}") from None
   return Plan(task=payload["task"], preset=payload["preset"], seed=payload["seed"], out=out,
               spec=spec, configs=configs, overrides=overrides, widen=widen, warnings=warnings,
-              variants=variants, grouped=payload.get("grouped", False) is True)
+              variants=variants, grouped=payload.get("grouped", False) is True, physics=physics)
+
+
+def saved_physics(payload) -> str | None:
+  """The physics a saved run trained with: its ``physics`` entry; for an ant run from before
+  the choice, ``mjx`` (what it ran on)."""
+  task, physics = payload["task"], payload.get("physics")
+  if not task.startswith("Ant"):
+    if physics is not None:
+      raise ValueError(f"physics must be null for {task}, got {physics!r}")
+    return None
+  if physics is None:
+    return "mjx"
+  if physics not in ("c", "mjx"):
+    raise ValueError(f"physics must be c or mjx, got {physics!r}")
+  return physics
 
 
 def _saved_config(payload, name: str, spec, overrides: dict, widen: dict):

@@ -28,6 +28,7 @@ import threading
 import time
 
 import jax
+import numpy as np
 
 from nonmono_jax import io, runlock
 from nonmono_jax.plan import Plan, load_run, new_run  # noqa: F401 - the run's library entry points
@@ -35,7 +36,8 @@ from nonmono_jax.plan import to_json
 
 
 class NonFinite(RuntimeError):
-  """A NaN or Inf in a learner's parameters or losses (names the step, seed and level)."""
+  """A NaN or Inf in a learner's parameters or losses, or a physics step that MuJoCo found
+  unstable (names the steps, seed and where)."""
 
 
 class TimeLimit(RuntimeError):
@@ -264,10 +266,13 @@ def _chunk(plan: Plan, names, trainer, states, t0: int, ckpts, timing: _Timing):
   states, metrics = trainer.chunk(states, t0)
   t_end = t0 + spec.chunk
   bad = io.first_non_finite(states, metrics)  # waits for the chunk
+  what = "NaN or Inf in {}"
+  if bad is None:
+    bad, what = first_unstable(metrics), "unstable physics (MuJoCo reset the simulation) in {}"
   if bad is not None:
     variant, seed = divmod(int(bad[0]), spec.seeds)
     last = ckpts[variant].latest_step()
-    raise NonFinite(f"{names[variant]}: NaN or Inf in {bad[1]} of seed {seed} within steps "
+    raise NonFinite(f"{names[variant]}: {what.format(bad[1])} of seed {seed} within steps "
                     f"{t0}-{t_end}; " + (f"the last good checkpoint is step {last}"
                                          if last is not None else
                                          "no checkpoint was saved before it"))
@@ -282,6 +287,20 @@ def _chunk(plan: Plan, names, trainer, states, t0: int, ckpts, timing: _Timing):
     results.append(ChunkResult(method=name, step=t_end, env_step=t_end * num_envs, rows=rows,
                                metrics=lane_metrics, states=lanes, seconds=seconds, rate=rate))
   return states, results
+
+
+UNSTABLE = {"physics/unstable": "training", "eval/unstable": "evaluation"}
+
+
+def first_unstable(metrics: dict) -> tuple[int, str] | None:
+  """(lane, "training" or "evaluation") of the first lane whose env steps the physics found
+  unstable in the chunk (``env.unstable``), or None."""
+  for name, where in UNSTABLE.items():
+    if name in metrics:
+      lanes = np.flatnonzero(np.asarray(metrics[name]) > 0)
+      if lanes.size:
+        return int(lanes[0]), where
+  return None
 
 
 def _rate_after(timing: _Timing, env_steps: int) -> float:

@@ -4,7 +4,7 @@
     states = trainer.init(key)                      # one SeedState per seed (vmapped)
     for t0 in range(0, total, trainer.chunk_steps):  # Python: progress, logs, checkpoints
       states, metrics = trainer.chunk(states, t0)   # lax.scan over steps, vmap over seeds
-    s_e, dist, ret = trainer.evaluate(states, key)  # per seed, outside the schedule
+    s_e, dist, ret, unstable = trainer.evaluate(states, key)  # per seed, off the schedule
 
 Inside a chunk the global step ``t`` is the scan's input and is not batched over seeds, so
 every horizon gate in ``agent.step`` stays a real branch (SPEC section 6). ``metrics`` are per

@@ -1,7 +1,7 @@
 """Shared test setup: persistent XLA compilation cache and session-wide compiled envs.
 
 XLA compile time dominates this suite on a CPU (an MJX ant maze program takes tens of
-seconds), so every program is compiled once per session (the fixtures below) and the
+seconds; the ant on MuJoCo C, the default physics on a CPU, about one), so every program is compiled once per session (the fixtures below) and the
 compiled executables are cached on disk across sessions (``.jax_cache/`` or
 ``$JAX_COMPILATION_CACHE_DIR``).
 """
@@ -37,22 +37,24 @@ SMOKE_BATCH = 2
 class CompiledEnv:
   """An env with its vmapped reset and step jitted once."""
 
-  def __init__(self, name: str):
-    self.env = envs.make(name, episode_length=SMOKE_EPISODE)
+  def __init__(self, name: str, physics: str | None = None):
+    extra = {"physics": physics} if physics else {}
+    self.env = envs.make(name, episode_length=SMOKE_EPISODE, **extra)
     self.reset = jax.jit(jax.vmap(self.env.reset))
     self.step = jax.jit(jax.vmap(self.env.step))
 
 
-_compiled: dict[str, CompiledEnv] = {}
+_compiled: dict[tuple, CompiledEnv] = {}
 
 
 @pytest.fixture(scope="session")
 def compiled_env():
-  """compiled_env(name) -> CompiledEnv, built once per session."""
+  """compiled_env(name, physics=None) -> CompiledEnv, built once per session (an ant's
+  physics: "c", "mjx", or None for the default, C on a CPU)."""
 
-  def get(name: str) -> CompiledEnv:
-    if name not in _compiled:
-      _compiled[name] = CompiledEnv(name)
-    return _compiled[name]
+  def get(name: str, physics: str | None = None) -> CompiledEnv:
+    if (name, physics) not in _compiled:
+      _compiled[name, physics] = CompiledEnv(name, physics)
+    return _compiled[name, physics]
 
   return get

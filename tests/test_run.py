@@ -217,3 +217,26 @@ def test_a_config_json_that_today_cannot_rebuild_still_loads(old_run, tmp_path):
   plan = plan_lib.load_run(out)
   assert plan.configs["ours"] == run.load_run(old_run[0]).configs["ours"]
   assert any("cannot be rebuilt from today's presets" in w for w in plan.warnings)
+
+
+# --- the ant's physics --------------------------------------------------------------------------
+
+def test_the_ant_physics_is_recorded_and_an_old_ant_run_keeps_mjx(tmp_path):
+  plan = plan_lib.new_run("AntPush", ["hiro"], preset="quick", out=str(tmp_path / "a"))
+  assert plan.physics == "c"  # auto on a CPU
+  assert plan.env().physics == "c" and plan.trainer("hiro").agent.env.physics == "c"
+  payload = plan_lib.to_json(plan)
+  assert payload["physics"] == "c"
+  assert plan_lib.from_json(payload, plan.out).physics == "c"
+  mjx = plan_lib.new_run("AntPush", ["hiro"], preset="quick", physics="mjx")
+  assert plan_lib.from_json(plan_lib.to_json(mjx), plan.out).physics == "mjx"
+  del payload["physics"]  # a run folder from before the choice ran on MJX
+  assert plan_lib.from_json(payload, plan.out).physics == "mjx"
+  payload["physics"] = "warp"
+  with pytest.raises(ValueError, match="physics must be c or mjx, got 'warp'"):
+    plan_lib.from_json(payload, plan.out)
+  with pytest.raises(ValueError, match="PointMaze has no physics choice"):
+    plan_lib.new_run("PointMaze", ["hiro"], physics="c")
+  assert plan_lib.new_run("PointMaze", ["hiro"]).physics is None
+  with pytest.raises(ValueError, match="--physics must be one of auto, c, mjx"):
+    plan_lib.new_run("AntFall", ["hiro"], physics="C")
