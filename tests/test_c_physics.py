@@ -93,7 +93,8 @@ def test_a_simulation_does_not_depend_on_its_batch(push):
   np.testing.assert_array_equal(together[3], alone[0])
 
 
-def test_unstable_simulation_is_flagged(push):
+def test_unstable_simulation_is_flagged(push, tmp_path, monkeypatch):
+  monkeypatch.chdir(tmp_path)  # MuJoCo logs its warning to MUJOCO_LOG.TXT there
   s0 = jax.jit(jax.vmap(push.reset))(jax.random.split(jax.random.PRNGKey(3), 2))
   nq = push.mj_model.nq
   rows = _rows(s0).copy()
