@@ -1,4 +1,4 @@
-"""Env steps per second of AntPush, AntFall, the bare HIRO ant and brax's stock ant.
+"""Env steps per second of AntPush, AntFall, the bare HIRO ant and brax's stock ant, per physics.
 
 Each env is jitted and vmapped at several batch sizes; one timed call runs ``--steps`` env
 steps inside ``lax.scan`` with random actions (uniform over the action range). The bare ant is
@@ -7,6 +7,11 @@ tasks, on a flat floor with no maze: the ratio maze / bare is the cost of the ma
 
     python -m benchmarks.env_throughput                 # CPU: batches 1, 16, 256
     python -m benchmarks.env_throughput                 # GPU: batches 1, 16, 256, ..., 16384
+    python -m benchmarks.env_throughput --envs AntPush AntFall --physics c mjx --steps 100
+
+``--physics``: the maze ants' (``envs.ant_maze``): ``c`` (MuJoCo C called from inside the
+jitted step, ``envs.c_physics``) and/or ``mjx``; ``auto`` is each backend's default. The ratio
+c / mjx at each batch is measured in the same run. brax's stock ant is always MJX.
 
 Writes ``benchmarks/results/env_throughput_<platform>_<date>.json`` after every row (the last
 write sets ``"complete": true``) and prints a table.
@@ -31,12 +36,12 @@ def _brax_ant():
   return brax_envs.get_environment("ant", backend="mjx")
 
 
-def make_env(name: str):
+def make_env(name: str, physics: str = "auto"):
   if name == "AntFlat":
-    return ant_maze.AntMazeEnv(tasks.FLAT)
+    return ant_maze.AntMazeEnv(tasks.FLAT, ant_maze.AntConfig(physics=physics))
   if name == "brax-ant":
     return _brax_ant()
-  return envs.make(name)
+  return envs.make(name, physics=physics)
 
 
 def measure(env, batch: int, steps: int, repeats: int) -> dict:
@@ -71,30 +76,35 @@ def main(argv=None):
   p.add_argument("--batches", nargs="+", type=int, default=None)
   p.add_argument("--steps", type=int, default=20, help="env steps per timed call")
   p.add_argument("--repeats", type=int, default=3)
+  p.add_argument("--physics", nargs="+", default=["auto"], choices=("auto", "c", "mjx"))
   p.add_argument("--out", default=common.RESULTS)
   args = p.parse_args(argv)
   on_gpu = jax.default_backend() == "gpu"
   batches = args.batches or ([1, 16, 256, 1024, 4096, 16384] if on_gpu else [1, 16, 256])
   rows = []
   for name in args.envs:
-    env = make_env(name)
-    for b in batches:
-      r = {"env": name, **measure(env, b, args.steps, args.repeats), **common.memory_stats()}
-      rows.append(r)
-      print(f"{name:9s} batch {b:6d}: {r['steps_per_s']:10.1f} steps/s "
-            f"(compile+first {r['compile_plus_first_s']:.1f} s)", flush=True)
-      common.write_result("env_throughput", args.out, argv, quiet=True, complete=False,
-                          results=rows)
-  ratios = {}
-  by = {(r["env"], r["batch"]): r["steps_per_s"] for r in rows}
-  for name in ("AntPush", "AntFall"):
-    for b in batches:
-      if (name, b) in by and ("AntFlat", b) in by:
-        ratios[f"{name}/AntFlat@{b}"] = by[(name, b)] / by[("AntFlat", b)]
-  for k, v in ratios.items():
+    for physics in (["mjx"] if name == "brax-ant" else args.physics):
+      env = make_env(name, physics)
+      physics = getattr(env, "physics", physics)
+      for b in batches:
+        r = {"env": name, "physics": physics, **measure(env, b, args.steps, args.repeats),
+             **common.memory_stats()}
+        rows.append(r)
+        print(f"{name:9s} {physics:3s} batch {b:6d}: {r['steps_per_s']:10.1f} steps/s "
+              f"(compile+first {r['compile_plus_first_s']:.1f} s)", flush=True)
+        common.write_result("env_throughput", args.out, argv, quiet=True, complete=False,
+                            results=rows)
+  by = {(r["env"], r["physics"], r["batch"]): r["steps_per_s"] for r in rows}
+  ratios, c_over_mjx = {}, {}
+  for (name, physics, b), rate in by.items():
+    if name in ("AntPush", "AntFall") and ("AntFlat", physics, b) in by:
+      ratios[f"{name}/AntFlat {physics}@{b}"] = rate / by[("AntFlat", physics, b)]
+    if physics == "c" and (name, "mjx", b) in by:
+      c_over_mjx[f"{name}@{b}"] = rate / by[(name, "mjx", b)]
+  for k, v in {**ratios, **{f"c/mjx {k}": v for k, v in c_over_mjx.items()}}.items():
     print(f"{k}: {v:.2f}")
   common.write_result("env_throughput", args.out, argv, complete=True, results=rows,
-                      ratios_to_bare_ant=ratios)
+                      ratios_to_bare_ant=ratios, c_over_mjx=c_over_mjx)
 
 
 if __name__ == "__main__":

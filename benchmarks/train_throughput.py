@@ -3,7 +3,9 @@
 The paper's settings: one env per seed, one Low TD3 update per env step (batch 100, 300-300
 networks), a Middle TD3 update with relabelling every c = 10 steps; for ours also the Middle PPO
 every 30 steps, the Top PPO every 400 and the mode switch; evaluation (50 episodes every 10K
-steps) is off here (``eval_every`` beyond the timed steps) and timed on its own in ``eval_s``.
+steps) is off here (``eval_every`` beyond the timed steps) and timed on its own in ``eval_s``
+(the trainer's ``evaluate``: the paper's 50 episodes of 1000 steps per seed, seeds split over
+the devices as in training; not for the ant on MJX on a CPU, where it takes minutes).
 Warm-up and the starting mode are set to 0 so that every timed step trains with all three
 modes live. Seeds are vmapped; one timed call is a jitted chunk of ``--chunk`` steps.
 
@@ -12,6 +14,7 @@ modes live. Seeds are vmapped; one timed call is a jitted chunk of ``--chunk`` s
     python -m benchmarks.train_throughput --num-envs 16        # envs per seed (GPU filling)
     python -m benchmarks.train_throughput --envs AntPush --seeds 1 5 16 --num-envs 1 16 64 256
     python -m benchmarks.train_throughput --cpu-devices 2 --seeds 4 16   # seeds over 2 CPU devices
+    python -m benchmarks.train_throughput --envs AntPush --physics mjx   # the ant on MJX
 
 With E envs per seed the updates are the paper's per vector step (``num_envs`` alone: one
 Low update per vector step), unless ``--grad-steps U`` is given: then U updates per vector
@@ -33,16 +36,16 @@ import time
 
 import jax
 
-import envs
 from benchmarks import common
 from benchmarks.common import ALL_MODES_LIVE
-from nonmono_jax import methods, run, train
+from nonmono_jax import methods, plan, run, train
 from nonmono_jax.config import override
 
 
 def measure(env_name: str, method: str, seeds: int, num_envs: int, chunk: int,
-            repeats: int, time_eval: bool, grad_steps: int | None = None) -> dict:
-  env = envs.make(env_name, episode_length=1000)
+            repeats: int, time_eval: bool, grad_steps: int | None = None,
+            physics: str = "auto") -> dict:
+  env = plan.make_env(env_name, 1000, physics if env_name.startswith("Ant") else None)
   base = methods.make_config(method, env_name.replace("Point", "Ant"))  # the paper's settings
   if grad_steps is not None:
     spec = methods.RunSpec(steps=chunk, seeds=seeds, episode_length=1000, chunk=chunk,
@@ -64,14 +67,14 @@ def measure(env_name: str, method: str, seeds: int, num_envs: int, chunk: int,
     states, _ = jax.block_until_ready(compiled(states, (r + 1) * chunk))
     best = min(best, time.perf_counter() - t0)
   eval_s = None
-  if time_eval:
-    evaluate = jax.jit(jax.vmap(trainer.agent.evaluate, in_axes=(0, 0, None)))
+  if time_eval:  # the trainer's own: the seeds split over the devices as in training
     key = jax.random.PRNGKey(1)
-    jax.block_until_ready(evaluate(states.low.params, states.middle.params, key))
+    jax.block_until_ready(trainer.evaluate(states, key))
     t0 = time.perf_counter()
-    jax.block_until_ready(evaluate(states.low.params, states.middle.params, key))
+    jax.block_until_ready(trainer.evaluate(states, key))
     eval_s = time.perf_counter() - t0
-  return {"env": env_name, "method": method, "seeds": seeds, "devices": jax.device_count(),
+  return {"env": env_name, "physics": getattr(env, "physics", "jax"), "method": method,
+          "seeds": seeds, "devices": jax.device_count(),
           "envs_per_seed": num_envs,
           "low_updates": config.low_updates, "low_batch": config.low.batch_size,
           "env_steps_per_s": seeds * num_envs * chunk / best, "compile_s": compile_s,
@@ -95,6 +98,9 @@ def main(argv=None):
   p.add_argument("--repeats", type=int, default=2)
   p.add_argument("--cpu-devices", type=int, default=1, metavar="N",
                  help="split the seeds over N CPU devices (each --seeds a multiple of N)")
+  p.add_argument("--physics", default="auto", choices=("auto", "c", "mjx"),
+                 help="the ant's physics (auto: c on a CPU, mjx on an accelerator)")
+  p.add_argument("--no-eval", action="store_true", help="do not time an evaluation")
   p.add_argument("--out", default=common.RESULTS)
   args = p.parse_args(argv)
   run.use_cpu_devices(args.cpu_devices)
@@ -114,12 +120,14 @@ def main(argv=None):
       for e in args.num_envs:
         for s in args.seeds:
           # One evaluation is 50 episodes x 1000 steps per seed: minutes of MJX on a CPU.
-          time_eval = name.startswith("Point") or jax.default_backend() != "cpu"
+          mjx_on_cpu = (name.startswith("Ant") and jax.default_backend() == "cpu"
+                        and args.physics == "mjx")
+          time_eval = not (args.no_eval or mjx_on_cpu)
           u = e if args.paper_updates else args.grad_steps
-          r = measure(name, method, s, e, args.chunk, args.repeats, time_eval, u)
+          r = measure(name, method, s, e, args.chunk, args.repeats, time_eval, u, args.physics)
           rows.append(r)
           mib = r["memory"].get("total", 0) / 2**20
-          print(f"{name:9s} {method:5s} seeds {s:3d} x envs {e:3d} on {r['devices']} device(s): "
+          print(f"{name:9s} {r['physics']:3s} {method:5s} seeds {s:3d} x envs {e:3d} on {r['devices']} device(s): "
                 f"{r['env_steps_per_s']:8.1f} env steps/s (compile {r['compile_s']:.1f} s, "
                 f"first chunk {r['first_chunk_s']:.1f} s, program {mib:.0f} MiB; one "
                 f"evaluation {r['eval_s']} s)", flush=True)

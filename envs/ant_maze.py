@@ -39,7 +39,7 @@ def default_physics() -> str:
 @dataclasses.dataclass(frozen=True)
 class AntConfig(base.EnvConfig):
   """Ant maze options. ``optimised=False`` builds HIRO's model literally (slow in MJX).
-  ``physics``: ``c``, ``mjx`` or ``auto`` (resolved on construction, ``default_physics``)."""
+  ``physics``: ``c``, ``mjx`` or ``auto`` (resolved by the env, ``default_physics``)."""
 
   physics: str = "auto"
   optimised: bool = True
@@ -52,8 +52,6 @@ class AntConfig(base.EnvConfig):
     super().__post_init__()
     if self.physics not in PHYSICS:
       raise ValueError(f"physics must be one of {', '.join(PHYSICS)}, got {self.physics!r}")
-    if self.physics == "auto":
-      object.__setattr__(self, "physics", default_physics())
     for name in ("solver_iterations", "solver_ls_iterations"):
       if getattr(self, name) < 1:
         raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
@@ -73,6 +71,8 @@ class AntMazeEnv(base.MazeTask, brax_base.PipelineEnv):
   """HIRO's ant in one of the maze layouts (``envs.tasks``)."""
 
   def __init__(self, task: tasks.Task, config: AntConfig = AntConfig()):
+    if config.physics == "auto":
+      config = dataclasses.replace(config, physics=default_physics())
     self.config = config
     self.task = task
     self.layout = task.layout(8.0)

@@ -140,12 +140,20 @@ def _make(env, config, per_lane, num_seeds, chunk_steps, devices, compiler_optio
   shard = lambda f, in_specs: jax.shard_map(f, mesh=mesh, in_specs=in_specs,
                                              out_specs=P("seeds"), check_vma=False)
 
-  def init(key):
+  def lane_keys(key):
     """Lane v * S + i from seed i's key: the same start as variant v run alone."""
     keys = jax.random.split(key, num_seeds)
-    return jax.vmap(agent.init)(jp.tile(keys, (variants, 1)) if variants > 1 else keys)
+    return jp.tile(keys, (variants, 1)) if variants > 1 else keys
 
   jit = functools.partial(jax.jit, compiler_options=compiler_options)
+  # Each device initialises its own lanes, as it steps them (an env whose physics runs on the
+  # host, envs.c_physics, is called back per device).
+  sharded_init = jit(shard(jax.vmap(agent.init), (P("seeds"),)), out_shardings=seeds)
+  keys_of = jit(lane_keys, out_shardings=seeds)
+
+  def init(key):
+    return sharded_init(keys_of(key))
+
   # out_shardings: XLA would return zero-size leaves (an MJX model's empty mocap_pos, PointMaze's
   # blocks) replicated; kept split by lane, a chunk's output is its next input's sharding and the
   # chunk compiles once (not twice) and runs ahead-of-time compiled
@@ -159,5 +167,5 @@ def _make(env, config, per_lane, num_seeds, chunk_steps, devices, compiler_optio
     chunk = lambda states, t0: lanes_chunk(states, t0, hp)
   return Trainer(
       agent=agent, num_seeds=num_seeds, chunk_steps=chunk_steps, mesh=mesh,
-      init=jit(init, out_shardings=seeds), chunk=chunk,
+      init=init, chunk=chunk,
       evaluate=jit(shard(local_evaluate, (P("seeds"), P()))), variants=variants)
