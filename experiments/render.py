@@ -49,7 +49,7 @@ def rollout(run_dir: str, method: str | None = None, seed: int = 0, key: int = 0
                                              config.eval_target_networks)
   low_params, middle_params = pick(states.low.params), pick(states.middle.params)
   agent = trainer.agent
-  run_episode = evaluate.make_episode(env, config.c, agent.low.td3.act, agent.middle.td3.act)
+  run_episode = evaluate.make_episode(env, config.c, agent.low.td3.act, agent.middle.policy)
 
   @jax.jit
   def episode(k):

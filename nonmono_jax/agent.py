@@ -232,8 +232,9 @@ def _act(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys, hp: hyper.Hy
   a = _per_env(lambda params, e: p.low.act(params, e["s"], e["goal"], e["key"], clock.warm,
                                            hp.low), state.low.params, per_env)
   env_next = jax.vmap(p.env.step)(state.env, a)
-  step = EnvStep(s=s, goal=state.goal, action=a, s_next=env_next.obs, reward=env_next.reward,
-                 success=env_next.success)
+  scored = env_next if p.config.scored_state == "next" else state.env  # the code: s
+  step = EnvStep(s=s, goal=state.goal, action=a, s_next=env_next.obs, reward=scored.reward,
+                 success=scored.success)
   low_tr = jax.vmap(lambda e: p.low.transition(e.s, e.goal, e.action, e.s_next))(step)
   state, counted = _count(state, clock.live, clock.t >= p.chooser.live_from, "mode_steps",
                           "mode_steps_after_start")
@@ -256,7 +257,9 @@ def _act(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys, hp: hyper.Hy
 
 def _reset(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys) -> SeedState:
   """Episode end. It falls on a segment's end (episode_length is a multiple of c), after s_c
-  is recorded, so the reset comes first and the next goal is chosen from the new state."""
+  is recorded. With ``episode_start="reset"`` the reset comes before the segment's end, so the
+  next goal and mode are chosen from the new state; with ``"last"`` (the paper's code) after
+  it: they are chosen from the episode's last state, and the relative goal carries over."""
 
   def reset(state):
     return state.replace(env=jax.vmap(p.env.reset)(jax.random.split(keys.reset,
@@ -339,8 +342,14 @@ def _step(p: _Parts, state: SeedState, t, hp: hyper.Hyper):
   lane's numbers ``hp``."""
   keys, clock = StepKeys.split(state.key), _clock(p, t)
   state, metrics = _act(p, state, clock, keys, hp)
-  state = _reset(p, state, clock, keys)
-  for phase in (_end_segment, _updates, _evaluation):
+  reset_first = p.config.episode_start == "reset"
+  if reset_first:
+    state = _reset(p, state, clock, keys)
+  state, m = _end_segment(p, state, clock, keys, hp)
+  metrics.update(m)
+  if not reset_first:
+    state = _reset(p, state, clock, keys)
+  for phase in (_updates, _evaluation):
     state, m = phase(p, state, clock, keys, hp)
     metrics.update(m)
   return state, metrics
@@ -351,10 +360,10 @@ def make_agent(env, config: AgentConfig = AgentConfig()) -> Agent:
   config.check_env(env)
   target = jp.asarray(env.target, jp.float32)
   low = make_low(env.observation_size, env.action_size, env.action_limit, config.low,
-                 config.low_updates)
+                 config.low_updates, config.low_done_goal)
   middle = make_middle(env.observation_size, env.action_size, target, config, low.td3.act)
   chooser = modes.make_chooser(config, env.observation_size, target, middle.value)
-  evaluate = evaluate_lib.make_evaluate(env, config.c, low.td3.act, middle.td3.act,
+  evaluate = evaluate_lib.make_evaluate(env, config.c, low.td3.act, middle.policy,
                                         config.eval_episodes, config.eval_target_networks)
   p = _Parts(config=config, env=env, low=low, middle=middle, chooser=chooser, evaluate=evaluate)
   own = hyper.of(config)

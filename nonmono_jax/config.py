@@ -31,6 +31,14 @@ EXPLORE_MODES = ("ppo", "random")  # the explore mode of the homeostasis switch
 RANDOM_GOALS = ("uniform", "gaussian")  # ours uniform; the paper's code clip(randn * range)
 RELABELS = ("store", "sample")  # the paper's code: once at store, Low target actor; HIRO: per batch
 PPO_SAMPLES = ("own", "executed")  # what the Middle PPO stores for segments other modes ran
+# Where the paper's code made a choice that this project first made otherwise (README,
+# "Fidelity"): the first value is the earlier one, kept as the default so that every earlier
+# run is what it was; the Ant presets (methods.py) take the code's, the second.
+LOW_DONE_GOALS = ("next", "current")  # Low done ||g|| <= 1.5 of g' = h(s, g, s') or of g
+SCORED_STATES = ("next", "current")  # training's task reward and success: on s' or on s
+EPISODE_STARTS = ("reset", "last")  # an episode's first goal and mode: from the reset state
+#                                      or from the last state before the reset
+MIDDLE_TD3_INPUTS = ("state_target", "state")  # the Middle TD3 actor's input (critic: + goal)
 
 
 def _check_triple(name, values, lo=None, hi=None):
@@ -91,6 +99,13 @@ class AgentConfig:
   random_goal: str = "uniform"
   middle_relabel: str = "store"  # HIRO's goal relabelling: "store" (paper's code) or "sample"
   middle_ppo_sample: str = "own"  # Middle PPO rollout: its "own" sample or the "executed" goal
+  low_done_goal: str = "next"  # LOW_DONE_GOALS; the code: "current"
+  scored_state: str = "next"  # SCORED_STATES; the code: "current" (evaluation scores s' always)
+  episode_start: str = "reset"  # EPISODE_STARTS; the code: "last"
+  middle_td3_input: str = "state_target"  # MIDDLE_TD3_INPUTS; the code: "state"
+  # PPO returns (Top and Middle PPO) also end at an episode's end (False) or only at their own
+  # terminals, done_m and success (True, the code's: a return may run into the next episode)
+  returns_cross_episodes: bool = False
   eval_target_networks: bool = True  # S_E of the target actors, as the paper's code
   c: int = 10  # Middle horizon
   goal_range: tuple[float, float, float] = (10.0, 10.0, 0.5)
@@ -112,7 +127,9 @@ class AgentConfig:
     object.__setattr__(self, "goal_range", tuple(float(g) for g in self.goal_range))
     for name, allowed in (("switch", SWITCHES), ("explore_mode", EXPLORE_MODES),
                           ("random_goal", RANDOM_GOALS), ("middle_relabel", RELABELS),
-                          ("middle_ppo_sample", PPO_SAMPLES)):
+                          ("middle_ppo_sample", PPO_SAMPLES), ("low_done_goal", LOW_DONE_GOALS),
+                          ("scored_state", SCORED_STATES), ("episode_start", EPISODE_STARTS),
+                          ("middle_td3_input", MIDDLE_TD3_INPUTS)):
       if getattr(self, name) not in allowed:
         raise ValueError(f"{name} must be one of {', '.join(allowed)}; "
                          f"got {getattr(self, name)!r}")

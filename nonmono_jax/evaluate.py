@@ -23,13 +23,11 @@ from nonmono_jax import hierarchy
 def make_episode(env, c: int, low_act: Callable, middle_act: Callable) -> Callable:
   """``episode(low_params, middle_params, key) -> (reset state, per-step records)``.
 
-  ``low_act(params, obs, goal)`` and ``middle_act(params, obs, target)`` are the noiseless
-  TD3 policies. Record t (of ``env.episode_length``): after step t the robot's ``pos``,
+  ``low_act(params, obs, goal)`` and ``middle_act(params, obs)`` are the noiseless TD3
+  policies (the Middle's towards the env's target: ``middle.Middle.policy``). Record t (of ``env.episode_length``): after step t the robot's ``pos``,
   ``success``, ``distance``, ``reward``, the ``blocks``' centres and whether the physics went
   ``unstable``, and the world point ``goal`` = s[:3] + g that the Low was sent to during step t.
   """
-  target = jp.asarray(env.target, jp.float32)
-
   def episode(low_params, middle_params, key):
     s0 = env.reset(key)
 
@@ -39,14 +37,14 @@ def make_episode(env, c: int, low_act: Callable, middle_act: Callable) -> Callab
     def observe(g, s, s2, t):
       """The goal transition, or the Middle's next goal every c steps; the step's record."""
       g2 = hierarchy.goal_transition(s.obs, g, s2.obs)
-      g2 = jp.where((t + 1) % c == 0, middle_act(middle_params, s2.obs, target), g2)
+      g2 = jp.where((t + 1) % c == 0, middle_act(middle_params, s2.obs), g2)
       record = {"pos": s2.obs[:hierarchy.GOAL_SIZE], "goal": s.obs[:hierarchy.GOAL_SIZE] + g,
                 "success": s2.success, "distance": s2.distance, "reward": s2.reward,
                 "blocks": env.block_positions(s2), "unstable": env.unstable(s2)}
       return g2, record
 
     _, records = rollout.unroll(env, s0, act, jp.arange(env.episode_length),
-                                middle_act(middle_params, s0.obs, target), observe)
+                                middle_act(middle_params, s0.obs), observe)
     return s0, records
 
   return episode

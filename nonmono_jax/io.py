@@ -190,6 +190,15 @@ def _well_formed(line: str) -> bool:
     return False
 
 
+def _empty(x):
+  """A zero-size leaf as an array: the template's own, or zeros for an abstract one."""
+  if isinstance(x, jax.ShapeDtypeStruct):
+    sharding = getattr(x, "sharding", None)
+    zeros = jp.zeros(x.shape, x.dtype)
+    return jax.device_put(zeros, sharding) if sharding is not None else zeros
+  return x
+
+
 class Checkpoints:
   """Orbax checkpoints of one method's train state, keyed by the vector step reached."""
 
@@ -224,7 +233,7 @@ class Checkpoints:
     abstract = {k: jax.ShapeDtypeStruct(x.shape, x.dtype, sharding=getattr(x, "sharding", None))
                 for k, x in self._stored(leaves).items()}
     got = self.manager.restore(step, args=ocp.args.StandardRestore(abstract))
-    return jax.tree.unflatten(treedef, [got.get(str(i), x) for i, x in enumerate(leaves)])
+    return jax.tree.unflatten(treedef, [got.get(str(i), _empty(x)) for i, x in enumerate(leaves)])
 
   def restore_newest(self, like, log=print, move_aside: bool = True):
     """(step, state) of the newest checkpoint that restores, or (None, ``like``) if there is

@@ -3,6 +3,9 @@
     a   = clip(pi_L(s, g) + N(0, sigma_L), +-limit)       (uniform random during warm-up)
     g'  = s[:3] + g - s'[:3];   r_L = -||g'||;   done_L = ||g'|| <= 1.5
     Low buffer <- (s, g, a, r_L, s', g', done_L);  ``updates`` TD3 updates per env step
+
+``done_goal="current"`` tests the goal of the step instead, ||g|| <= 1.5 (the paper's code:
+"s was already within 1.5 of its subgoal").
 """
 
 from __future__ import annotations
@@ -26,7 +29,7 @@ class Low:
 
 
 def make_low(obs_size: int, action_size: int, action_limit, config: td3.TD3Config,
-             updates: int = 1) -> Low:
+             updates: int = 1, done_goal: str = "next") -> Low:
   k = hierarchy.GOAL_SIZE
   learner = td3.make_td3(obs_size, k, action_size, action_limit, config)
   lim = jp.broadcast_to(jp.asarray(action_limit, jp.float32), (action_size,))
@@ -41,7 +44,8 @@ def make_low(obs_size: int, action_size: int, action_limit, config: td3.TD3Confi
     g_next = hierarchy.goal_transition(s, g, s_next)
     return td3.Transition(obs=s, context=g, action=a,
                           reward=hierarchy.low_reward(s, g, s_next), next_obs=s_next,
-                          next_context=g_next, done=hierarchy.low_done(g_next))
+                          next_context=g_next,
+                          done=hierarchy.low_done(g_next if done_goal == "next" else g))
 
   def update(state: td3.TD3State, buffer: buffers.ReplayBuffer, key, t,
              hp: td3.TD3Hyper = learner.hyper):

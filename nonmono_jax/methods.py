@@ -64,7 +64,13 @@ class TaskPreset:
   rho: dict  # method -> homeostasis target rate (the Ref methods)
 
 
-_ANT: dict = {}
+# The Ant presets follow the paper's code where it made a choice this project first made
+# otherwise (README, "Fidelity"); the point presets keep the earlier choices, so that the
+# committed point study reproduces.
+_TORCH_INIT = {f"{learner}.init": "torch" for learner in ("low", "middle", "middle_ppo", "top.ppo")}
+_ANT: dict = {**_TORCH_INIT, "middle_ppo.decay_at_start": True, "low_done_goal": "current",
+              "scored_state": "current", "episode_start": "last", "middle_td3_input": "state",
+              "returns_cross_episodes": True}
 _POINT_TD3 = {"hidden": (64, 64), "lr_actor": 1e-3}
 _POINT_PPO = {"hidden": (64, 64), "std_decay_every": 20_000}
 _POINT = {

@@ -3,6 +3,7 @@
 g_expl_mode picks which one emits the next goal (a relative xyz offset within +-goal_range):
 
     TD3     g = clip(pi_M(s, target) + N(0, sigma_M))     sigma_M: HIRO 1, ours 0
+            (pi_M(s) with ``middle_td3_input="state"``, the paper's code; its critic Q(s, g))
     PPO     g = clip(N(mu_M(s, target), std_t))          std_t decays 0.6 -> 0.1 (goal units)
     RANDOM  g ~ U(-range, range)                          (or the paper code's clip(randn*range))
 
@@ -17,7 +18,8 @@ whichever mode chose g, feeds both learners:
   decision and stores that sample, with its log-probability, next to the executed segment's
   reward, whichever mode chose the executed goal (``middle_ppo_sample="own"``);
   ``"executed"`` stores the executed goal g with log pi_PPO(g | s_0) instead. Its terminal is
-  success at s_c, or the episode's end (so Monte Carlo returns never cross episodes).
+  success at s_c, or the episode's end (so Monte Carlo returns never cross episodes) unless
+  ``returns_cross_episodes`` (the paper's code: success only).
 """
 
 from __future__ import annotations
@@ -76,6 +78,7 @@ class Middle:
   td3_update: Callable[..., tuple[td3.TD3State, dict]]
   ppo_update: Callable[..., tuple[Explorer, dict]]
   ppo_std: Callable[[jax.Array], jax.Array]
+  policy: Callable[..., jax.Array]  # (td3 params, obs) -> the noiseless Middle TD3 goal
 
 
 def make_middle(obs_size: int, action_size: int, target, config: AgentConfig,
@@ -85,7 +88,10 @@ def make_middle(obs_size: int, action_size: int, target, config: AgentConfig,
   k, c = hierarchy.GOAL_SIZE, config.c
   goal_range = jp.asarray(config.goal_range, jp.float32)
   target = jp.asarray(target, jp.float32)
-  learner = td3.make_td3(obs_size, k, k, goal_range, config.middle)
+  # What the Middle TD3 sees besides s: the target, or nothing (the paper's code)
+  context = target if config.middle_td3_input == "state_target" else jp.zeros((0,), jp.float32)
+  learner = td3.make_td3(obs_size, context.shape[0], k, goal_range, config.middle)
+  ends_returns = 0.0 if config.returns_cross_episodes else 1.0
   explorer = (ppo.make_ppo(obs_size + k, k, config.middle_ppo, goal_range)
               if config.uses_middle_ppo else None)
   n_rollout = config.middle_rollout_length
@@ -109,7 +115,7 @@ def make_middle(obs_size: int, action_size: int, target, config: AgentConfig,
     """
     k1, k2, k3 = jax.random.split(key, 3)
     g_random = random_goal(k1)
-    g_td3 = learner.explore(td3_params, obs, target, k2, noise)
+    g_td3 = learner.explore(td3_params, obs, context, k2, noise)
     if explorer is None:
       g = jp.where(warm | (mode == hierarchy.RANDOM), g_random, g_td3)
       return g, g, jp.zeros(())
@@ -142,13 +148,14 @@ def make_middle(obs_size: int, action_size: int, target, config: AgentConfig,
   def pack(seg: Segment, g, episode_end):
     """The Middle TD3 buffer item (goal ``g``) and the Middle PPO rollout step of a segment."""
     reward = hierarchy.middle_reward(seg.rewards)
-    tr = td3.Transition(obs=seg.obs[0], context=target, action=g, reward=reward,
-                        next_obs=seg.obs[c], next_context=target, done=seg.success)
+    tr = td3.Transition(obs=seg.obs[0], context=context, action=g, reward=reward,
+                        next_obs=seg.obs[c], next_context=context, done=seg.success)
     item = {"transition": tr} if at_store else {"transition": tr, "states": seg.obs,
                                                 "actions": seg.actions}
     step = ppo.Rollout(obs=jp.concatenate([seg.obs[0], target]), action=seg.ppo_action,
                        log_prob=seg.log_prob, reward=reward,
-                       done=jp.maximum(seg.success, jp.asarray(episode_end, jp.float32)))
+                       done=jp.maximum(seg.success, ends_returns * jp.asarray(episode_end,
+                                                                             jp.float32)))
     return item, step
 
   def close(seg: Segment, episode_end, low_params, key):
@@ -187,9 +194,13 @@ def make_middle(obs_size: int, action_size: int, target, config: AgentConfig,
     rollout = jax.tree.map(lambda r, x: r.at[:, slot].set(x), explorer_state.rollout, steps)
     return explorer_state.replace(rollout=rollout)
 
+  def policy(td3_params, obs):
+    """The noiseless Middle TD3 goal at s (towards the target)."""
+    return learner.act(td3_params, obs, context)
+
   def value(td3_params, obs):
     """V(s) = min(Q1', Q2')(s, target, pi'_M(s, target)) with the target networks."""
-    tgt = jp.broadcast_to(target, obs.shape[:-1] + target.shape)
+    tgt = jp.broadcast_to(context, obs.shape[:-1] + context.shape)
     targets = td3_params.replace(actor=td3_params.target_actor)
     q = learner.q_values(td3_params.target_critic, obs, tgt, learner.act(targets, obs, tgt))
     return q.min(axis=0)
@@ -225,4 +236,4 @@ def make_middle(obs_size: int, action_size: int, target, config: AgentConfig,
   return Middle(td3=learner, ppo=explorer, init_buffer=init_buffer, init_rollout=init_rollout,
                 init_explorer=init_explorer, goal=goal, new_segment=new_segment, record=record,
                 close=close, store=store, ppo_params=ppo_params, value=value, td3_update=td3_update,
-                ppo_update=ppo_update, ppo_std=ppo_std)
+                ppo_update=ppo_update, ppo_std=ppo_std, policy=policy)

@@ -102,7 +102,7 @@ def make_fixed(config: AgentConfig, num_envs: int) -> ModeChooser:
 def make_top_chooser(config: AgentConfig, obs_size: int, target, num_envs: int) -> ModeChooser:
   """Ours: m ~ pi_T(s, target) per Top horizon; Top PPO every ``top.train_every`` steps."""
   cfg, E = config.top, num_envs
-  top = make_top(obs_size, target, cfg)
+  top = make_top(obs_size, target, cfg, config.returns_cross_episodes)
   live_from = config.warmup_steps + cfg.starting_steps
   start = jax.vmap(top.start, in_axes=(None, 0, 0, None))
 

@@ -3,6 +3,10 @@
 Following brax's ``networks.py``: the flax module stays inside the factory; callers see
 ``params = net.init(key)`` and ``net.apply(params, *inputs)`` (inputs are concatenated on the
 last axis, so ``apply(params, obs, goal)`` is a goal-conditioned network).
+
+Initialisation (``INITS``): ``"lecun"``, lecun-uniform weights and zero biases (flax's usual);
+``"torch"``, PyTorch's default for ``nn.Linear``, which the paper's code keeps: weights and
+biases both U(-1/sqrt(fan_in), 1/sqrt(fan_in)), 1/sqrt(3) of lecun-uniform's weight scale.
 """
 
 from __future__ import annotations
@@ -15,6 +19,12 @@ import jax
 import jax.numpy as jp
 
 Activation = Callable[[jax.Array], jax.Array]
+INITS = ("lecun", "torch")
+
+
+def _torch_uniform(fan_in: int):
+  bound = 1.0 / fan_in**0.5
+  return lambda key, shape, dtype=jp.float32: jax.random.uniform(key, shape, dtype, -bound, bound)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -31,12 +41,17 @@ class MLP(nn.Module):
   sizes: Sequence[int]
   activation: Activation = nn.relu
   final_activation: Activation | None = None
+  weights: str = "lecun"  # INITS (``init`` is flax's method)
 
   @nn.compact
   def __call__(self, x: jax.Array) -> jax.Array:
     for i, size in enumerate(self.sizes):
-      x = nn.Dense(size, kernel_init=nn.initializers.lecun_uniform(),
-                   name=f"dense_{i}")(x)
+      if self.weights == "torch":
+        uniform = _torch_uniform(x.shape[-1])
+        dense = nn.Dense(size, kernel_init=uniform, bias_init=uniform, name=f"dense_{i}")
+      else:
+        dense = nn.Dense(size, kernel_init=nn.initializers.lecun_uniform(), name=f"dense_{i}")
+      x = dense(x)
       if i < len(self.sizes) - 1:
         x = self.activation(x)
     if self.final_activation is not None:
@@ -46,9 +61,12 @@ class MLP(nn.Module):
 
 def make_mlp(input_size: int, hidden: Sequence[int], output_size: int,
              activation: Activation = nn.relu,
-             final_activation: Activation | None = None) -> Network:
-  """An MLP over the concatenation of its inputs (total width ``input_size``)."""
-  module = MLP(tuple(hidden) + (output_size,), activation, final_activation)
+             final_activation: Activation | None = None, init: str = "lecun") -> Network:
+  """An MLP over the concatenation of its inputs (total width ``input_size``), initialised
+  as ``init`` says (``INITS``)."""
+  if init not in INITS:
+    raise ValueError(f"init must be one of {', '.join(INITS)}, got {init!r}")
+  module = MLP(tuple(hidden) + (output_size,), activation, final_activation, init)
 
   def init(key):
     return module.init(key, jp.zeros((1, input_size)))

@@ -26,8 +26,8 @@ caller (``gaussian_std``) and the Adam parameter groups. The Gaussian head is th
 Middle's std of 0.6 is 0.6 goal units, as in the paper's code (the caller clips the goal to
 its range). ``mean_head="tanh"`` keeps this project's earlier head, ``action_scale *
 tanh(mlp)`` with std ``std * action_scale`` per dimension (at a goal range of 10 an x/y std
-of 6: about as entropic as uniform random goals). Networks use ``networks.make_mlp``'s
-initialisation, not torch's.
+of 6: about as entropic as uniform random goals). Networks are initialised as ``init`` says
+(``networks.INITS``: ``"torch"`` is the port's).
 """
 
 from __future__ import annotations
@@ -67,6 +67,10 @@ class PPOConfig:
   std_decay_every: int = 250_000
   std_min: float = 0.1
   mean_head: str = "linear"  # Gaussian: "linear" (the paper's code) or "tanh" (scaled by range)
+  # The std schedule's first decay at step 0 (the paper's code: its t % 250K == 0 fires at
+  # t = 0 too, so the Middle's std is 0.55 on [0, 250K)); False: std_init until the first period
+  decay_at_start: bool = False
+  init: str = "lecun"  # networks.INITS: "torch" is the paper's code (PyTorch's nn.Linear default)
 
   def __post_init__(self):
     object.__setattr__(self, "hidden", tuple(int(h) for h in self.hidden))
@@ -94,6 +98,8 @@ class PPOConfig:
       raise ValueError(f"std_decay must be >= 0, got {self.std_decay}")
     if self.std_decay_every < 1:
       raise ValueError(f"std_decay_every must be >= 1, got {self.std_decay_every}")
+    if self.init not in networks.INITS:
+      raise ValueError(f"init must be one of {', '.join(networks.INITS)}, got {self.init!r}")
     if self.mean_head not in MEAN_HEADS:
       raise ValueError(f"mean_head must be one of {', '.join(MEAN_HEADS)}, "
                        f"got {self.mean_head!r}")
@@ -163,8 +169,11 @@ class PPO:
 
 
 def gaussian_std(step: jax.Array, config: PPOConfig) -> jax.Array:
-  """The port's std schedule: ``std_init - std_decay`` per ``std_decay_every`` steps, floored."""
+  """The port's std schedule: ``std_init - std_decay`` per ``std_decay_every`` steps, floored;
+  with ``decay_at_start`` the first decay falls at step 0 (the paper's code)."""
   n = jp.floor_divide(jp.asarray(step), config.std_decay_every).astype(jp.float32)
+  if config.decay_at_start:
+    n = n + 1.0
   std = jp.round(config.std_init - config.std_decay * n, 4)
   return jp.maximum(std, config.std_min).astype(jp.float32)
 
@@ -217,8 +226,9 @@ def make_ppo(obs_size: int, action_size: int, config: PPOConfig = PPOConfig(),
   log_unit_sum = jp.sum(jp.where(active, jp.log(unit), 0.0))
 
   actor = networks.make_mlp(obs_size, config.hidden, action_size, activation=nn.tanh,
-                            final_activation=nn.tanh if scaled and not discrete else None)
-  critic = networks.make_mlp(obs_size, config.hidden, 1, activation=nn.tanh)
+                            final_activation=nn.tanh if scaled and not discrete else None,
+                            init=config.init)
+  critic = networks.make_mlp(obs_size, config.hidden, 1, activation=nn.tanh, init=config.init)
   optimizer = optax.multi_transform(
       {"actor": optax.adam(1.0), "critic": optax.adam(1.0)},  # rates: learning.gradient_step
       lambda p: {k: jax.tree.map(lambda _: k, v) for k, v in p.items()})

@@ -45,6 +45,7 @@ class TD3Config:
   expl_noise: float = 1.0  # behaviour noise std before clipping (Low: N(0, 1) on torques)
   buffer_size: int = 200_000  # a ring; the run presets size it to the run (never evicts)
   target_smoothing: bool = True
+  init: str = "lecun"  # networks.INITS: "torch" is the paper's code (PyTorch's nn.Linear default)
 
   def __post_init__(self):
     for name in ("lr_actor", "lr_critic", "tau", "gamma"):
@@ -59,6 +60,8 @@ class TD3Config:
         raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
     if not self.hidden or any(h < 1 for h in self.hidden):
       raise ValueError(f"hidden must be positive layer sizes, got {self.hidden}")
+    if self.init not in networks.INITS:
+      raise ValueError(f"init must be one of {', '.join(networks.INITS)}, got {self.init!r}")
 
 
 @struct.dataclass
@@ -142,9 +145,9 @@ def make_td3(obs_size: int, context_size: int, action_size: int, action_scale,
   """Build TD3 for observations, a context (goal) and actions in [-scale, scale]."""
   scale = jp.broadcast_to(jp.asarray(action_scale, jp.float32), (action_size,))
   actor_net = networks.make_mlp(obs_size + context_size, config.hidden, action_size,
-                                activation=nn.relu, final_activation=jp.tanh)
+                                activation=nn.relu, final_activation=jp.tanh, init=config.init)
   critic_net = networks.make_mlp(obs_size + context_size + action_size, config.hidden, 1,
-                                 activation=nn.relu)
+                                 activation=nn.relu, init=config.init)
   actor_opt = optax.adam(1.0)  # the learning rates scale the updates (learning.gradient_step)
   critic_opt = optax.adam(1.0)
   own = TD3Hyper.of(config)  # the numbers used where a lane's are not given

@@ -11,7 +11,8 @@ Per env, over a Top horizon of 50 steps run in mode m (the paper's Algorithm 1):
     every 400 steps: Top PPO on the 8 latest Top transitions, per-sample loss weights
       1 + S_E for the explore modes, 1 - S_E for TD3 (1 without the loss modification)
 
-The Top's rollout also ends at an episode's end (its Monte Carlo returns never cross episodes).
+The Top's rollout also ends at an episode's end (its Monte Carlo returns never cross episodes),
+unless ``returns_cross_episodes`` (the paper's code: they end at done_m only).
 """
 
 from __future__ import annotations
@@ -50,11 +51,13 @@ class Top:
   update: Callable[..., tuple[ppo.PPOState, dict]]
 
 
-def make_top(obs_size: int, target, config: TopConfig) -> Top:
+def make_top(obs_size: int, target, config: TopConfig,
+             returns_cross_episodes: bool = False) -> Top:
   k = hierarchy.GOAL_SIZE
   target = jp.asarray(target, jp.float32)
   policy = ppo.make_ppo(obs_size + k, len(hierarchy.MODES), config.ppo)
   own = TopHyper.of(config)  # the numbers used where a lane's are not given
+  ends_returns = 0.0 if returns_cross_episodes else 1.0
 
   def start(params, obs, key, forced):
     """A new horizon from s: m ~ pi_T(s, target), or RANDOM where ``forced``."""
@@ -76,7 +79,8 @@ def make_top(obs_size: int, target, config: TopConfig) -> Top:
     done_m = hierarchy.top_done(s_o_m, jp.where(starting, s_o_start, hp.s_o), h.mode)
     r_final = hierarchy.modified_reward(h.reward, hp.alpha, h.mode)
     step = ppo.Rollout(obs=h.obs, action=h.mode, log_prob=h.log_prob, reward=r_final,
-                       done=jp.maximum(done_m, jp.asarray(episode_end, jp.float32)))
+                       done=jp.maximum(done_m, ends_returns * jp.asarray(episode_end,
+                                                                        jp.float32)))
     return step, {"s_o_m": s_o_m, "done_m": done_m, "r_final": r_final}
 
   def init_rollout():
