@@ -31,9 +31,9 @@ EXPLORE_MODES = ("ppo", "random")  # the explore mode of the homeostasis switch
 RANDOM_GOALS = ("uniform", "gaussian")  # ours uniform; the paper's code clip(randn * range)
 RELABELS = ("store", "sample")  # the paper's code: once at store, Low target actor; HIRO: per batch
 PPO_SAMPLES = ("own", "executed")  # what the Middle PPO stores for segments other modes ran
-# Where the paper's code made a choice that this project first made otherwise (README,
-# "Fidelity"): the first value is the earlier one, kept as the default so that every earlier
-# run is what it was; the Ant presets (methods.py) take the code's, the second.
+# Where the paper's code made a choice that this project first made otherwise
+# (docs/fidelity.md): the first value is the earlier one, kept as the default so that every
+# earlier run is what it was; the Ant presets (methods.py) take the code's, the second.
 LOW_DONE_GOALS = ("next", "current")  # Low done ||g|| <= 1.5 of g' = h(s, g, s') or of g
 SCORED_STATES = ("next", "current")  # training's task reward and success: on s' or on s
 EPISODE_STARTS = ("reset", "last")  # an episode's first goal and mode: from the reset state

@@ -65,7 +65,7 @@ class TaskPreset:
 
 
 # The Ant presets follow the paper's code where it made a choice this project first made
-# otherwise (README, "Fidelity"); the point presets keep the earlier choices, so that the
+# otherwise (docs/fidelity.md); the point presets keep the earlier choices, so that the
 # committed point study reproduces.
 _TORCH_INIT = {f"{learner}.init": "torch" for learner in ("low", "middle", "middle_ppo", "top.ppo")}
 _ANT: dict = {**_TORCH_INIT, "middle_ppo.decay_at_start": True, "low_done_goal": "current",

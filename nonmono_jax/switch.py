@@ -15,7 +15,7 @@ Middle decisions (every c env steps), per env:
     after an explore period: a new exploit period, with a fresh window and (``reset_stats``)
       fresh homeostasis statistics
 
-Deliberate differences from the paper's code (README, fidelity table): explore periods last
+Deliberate differences from the paper's code (docs/fidelity.md): explore periods last
 the stated 100 steps (its counter bug makes them about 300); homeostasis divides by the
 standard deviation (it divides by the variance squared); after its first check it keeps
 checking every decision but with a window of one segment and no reward (its accumulators are

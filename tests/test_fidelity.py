@@ -1,4 +1,4 @@
-"""Fidelity to the paper's public PyTorch code where its text is silent (README, fidelity table).
+"""Fidelity to the paper's public PyTorch code where its text is silent (docs/fidelity.md).
 
 Each test pins one behaviour of the paper's code that this project once did differently:
 the paper presets, TD3's policy delay, the Middle TD3's done and relabelling, the Middle PPO's

@@ -1,5 +1,5 @@
 """The choices where the paper's code differs from this project's first reading, which the Ant
-presets take (README, "Fidelity"): PyTorch's initialisation, the Middle PPO's std decay at
+presets take (docs/fidelity.md): PyTorch's initialisation, the Middle PPO's std decay at
 step 0, the Low's done on the current goal, training scored on the state before the step,
 an episode's first goal and mode from its predecessor's last state, the Middle TD3 on the
 state alone, and PPO returns that end only at their own terminals."""
