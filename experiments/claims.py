@@ -1,0 +1,159 @@
+"""The Ant Push study's readings, as its protocol states them (``results/antpush/README.md``).
+
+    python -m experiments.claims results/antpush          # prints the readings as markdown
+
+Each claim is judged from the run folders' ``metrics.csv`` rows (ours and HIRO, S_E of 50
+episodes every 10K steps) with the statistics of ``experiments.stats`` (IQM over seeds, the
+probability of improvement, 95 % stratified-bootstrap intervals):
+
+1. S_E passes 0.6 at 1M: the IQM of final S_E against 0.6;
+2. S_E occurs from about 500K: each seed's mean S_E over the evaluations from 500K to 600K;
+3. HIRO best early (at a quarter of the run), then behind (at the end);
+4. the Top's mode counts after the starting mode, in Middle decisions, and "most PPO before 1M"
+   (half the paper's ~3600 PPO decisions).
+
+Written (and tested on made-up rows) before the study's results existed; a reading that the
+protocol does not define is not made here.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+import numpy as np
+
+from experiments import plot, stats
+
+TASK = "AntPush"
+PASS_AT_END = 0.6
+WINDOW = (500_000, 600_000)  # "occurs from about 500K": present by 600K
+PAPER_PPO_DECISIONS = 3600  # "about 3600" after the starting mode, over the paper's 3.15M steps
+
+
+def versus(interval, level: float, above: str, below: str) -> str:
+  """``above`` if the interval lies at or above ``level``, ``below`` if it lies below, else
+  "cannot be told apart"."""
+  _, lo, hi = interval
+  if lo >= level:
+    return above
+  if hi < level:
+    return below
+  return "cannot be told apart"
+
+
+def improvement(p) -> str:
+  """P(A > B) read as the study does: holds if its interval lies above 0.5, does not hold if
+  below, else cannot be told apart."""
+  return "holds" if p[1] > 0.5 else "does not hold" if p[2] < 0.5 else "cannot be told apart"
+
+
+def final_reading(values: np.ndarray) -> dict:
+  """Claim 1: the IQM of final S_E against 0.6 (and whether it lies above 0), the mean."""
+  iv = stats.interval(stats.iqm, values[:, -1])
+  return {"iqm": iv, "mean": float(values[:, -1].mean()),
+          "reading": versus(iv, PASS_AT_END, "holds", "does not hold"),
+          "above_zero": bool(iv[1] > 0)}
+
+
+def onset_reading(steps: np.ndarray, values: np.ndarray) -> dict:
+  """Claim 2: presence by 600K (the window's per-seed means), and where S_E first shows."""
+  inside = (steps >= WINDOW[0]) & (steps <= WINDOW[1])
+  if not inside.any():
+    return {"reading": "n/a (the runs do not reach 500K)"}
+  iv = stats.interval(stats.iqm, values[:, inside].mean(1))
+  upto = steps <= WINDOW[1]
+  if iv[1] > 0:
+    reading = "holds"
+  elif not values[:, upto].any():
+    reading = "does not hold"
+  else:
+    reading = "cannot be told apart"
+  curve = stats.iqm_curve(values)
+  first_ci = steps[np.flatnonzero(curve[1] > 0)] if (curve[1] > 0).any() else []
+  first_any = steps[np.flatnonzero(values.max(0) > 0)] if values.any() else []
+  return {"window_iqm": iv, "reading": reading,
+          "first_step_iqm_above_0": int(first_ci[0]) if len(first_ci) else None,
+          "first_step_any_seed": int(first_any[0]) if len(first_any) else None}
+
+
+def early_late_reading(ours: tuple, hiro: tuple) -> dict:
+  """Claim 3: P(HIRO > ours) at a quarter of the run, P(ours > HIRO) at the end."""
+  steps = ours[0]
+  early = plot._early(steps)  # the last evaluation by a quarter of the run
+  h_steps, h_values = hiro
+  at = int(np.flatnonzero(h_steps == steps[early])[0])
+  p_early = stats.interval(stats.probability_of_improvement, h_values[:, at],
+                           ours[1][:, early])
+  p_end = stats.interval(stats.probability_of_improvement, ours[1][:, -1], h_values[:, -1])
+  return {"early_step": int(steps[early]), "p_hiro_early": p_early,
+          "early": improvement(p_early), "p_ours_end": p_end, "behind": improvement(p_end)}
+
+
+def modes_reading(summary_row: dict) -> dict:
+  """Claim 4: the modes' order (plot.mode_order) and PPO decisions against 1800."""
+  ppo = summary_row["decisions_after_start_PPO"]
+  half = PAPER_PPO_DECISIONS / 2
+  return {"order": plot.mode_order(summary_row), "ppo": ppo,
+          "most_ppo_before_1m": versus(ppo, half, "holds", "does not hold")}
+
+
+def readings(rows) -> dict:
+  """Every claim's reading from the rows of ours and HIRO on AntPush."""
+  ours = plot.per_seed(rows, TASK, "ours", "eval_success")
+  hiro = plot.per_seed(rows, TASK, "hiro", "eval_success")
+  if not len(ours[0]) or not len(hiro[0]):
+    raise ValueError(f"{TASK} rows of both ours and hiro are needed")
+  summary = {r["method"]: r for r in plot.summary(rows) if r["task"] == TASK}
+  return {"steps": int(ours[0][-1]), "seeds": (len(ours[1]), len(hiro[1])),
+          "final": {m: final_reading(v[1]) for m, v in (("ours", ours), ("hiro", hiro))},
+          "onset": onset_reading(*ours), "early_late": early_late_reading(ours, hiro),
+          "modes": modes_reading(summary["ours"])}
+
+
+def _iv(iv, digits=2) -> str:
+  return f"{iv[0]:.{digits}f} [{iv[1]:.{digits}f}, {iv[2]:.{digits}f}]"
+
+
+def markdown(r: dict) -> str:
+  f, o, e, m = r["final"], r["onset"], r["early_late"], r["modes"]
+  lines = [
+      f"Ant Push, ours and HIRO at {r['steps']} env steps ({r['seeds'][0]} and "
+      f"{r['seeds'][1]} seeds).", "",
+      "| claim | reading | numbers |", "|---|---|---|",
+      f"| 1. ours' S_E passes 0.6 at 1M | {f['ours']['reading']} | IQM of final S_E "
+      f"{_iv(f['ours']['iqm'])} ({'above' if f['ours']['above_zero'] else 'not above'} 0), "
+      f"mean {f['ours']['mean']:.2f}; HIRO {_iv(f['hiro']['iqm'])}, mean "
+      f"{f['hiro']['mean']:.2f} |"]
+  if "window_iqm" in o:
+    lines.append(f"| 2. ours' S_E occurs from about 500K | {o['reading']} | IQM of each seed's "
+                 f"mean S_E over 500K-600K {_iv(o['window_iqm'])}; first evaluation with the "
+                 f"IQM's interval above 0: {o['first_step_iqm_above_0']}; with any seed above "
+                 f"0: {o['first_step_any_seed']} |")
+  else:
+    lines.append(f"| 2. ours' S_E occurs from about 500K | {o['reading']} | |")
+  lines += [
+      f"| 3a. HIRO best early ({e['early_step']}) | {e['early']} | P(HIRO > ours) "
+      f"{_iv(e['p_hiro_early'])} |",
+      f"| 3b. then behind ours (end) | {e['behind']} | P(ours > HIRO) {_iv(e['p_ours_end'])} |",
+      f"| 4a. modes after the starting mode: TD3 >> PPO > RANDOM | {m['order']} | Middle "
+      f"decisions of PPO {_iv(m['ppo'], 0)} |",
+      f"| 4b. most of the paper's ~3600 PPO decisions before 1M | {m['most_ppo_before_1m']} | "
+      f"PPO decisions {_iv(m['ppo'], 0)} against 1800 |"]
+  return "\n".join(lines) + "\n"
+
+
+def main(argv=None) -> int:
+  p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+  p.add_argument("dirs", nargs="+", help="run folders, or folders holding them")
+  args = p.parse_args(argv)
+  try:
+    print(markdown(readings(plot.load(args.dirs))), end="")
+  except ValueError as e:
+    print(f"error: {e}", file=sys.stderr)
+    return 2
+  return 0
+
+
+if __name__ == "__main__":
+  sys.exit(main())
