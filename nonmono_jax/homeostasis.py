@@ -33,6 +33,7 @@ from flax import struct
 EPS = 1e-8  # floor of the standard deviation: x2bar is 0 at the first step and on a constant x
 MAX_Z = 50.0  # cap of the standardised excess, so exp never overflows to inf (inf/inf = NaN)
 HORIZON = 100.0  # tau's cap is HORIZON / rho: averages over ~100 expected switches
+CADENCES = ("periods", "code")  # when the trigger checks (``HomeostasisConfig.cadence``)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -45,6 +46,10 @@ class HomeostasisConfig:
   gamma: float = 0.99  # discount of the value promise, per Middle segment
   k: int = 30  # lookback of the value promise discrepancy, in Middle segments
   reset_stats: bool = True  # fresh homeostasis statistics after each explore period
+  # "periods": explore_steps of explore, then k exploit segments to fill a fresh window before
+  # the first check (intra(100)); "code": the paper's code, k explore segments per switch (and
+  # k - 1 after the starting phase), a check right after them and at every exploit segment
+  cadence: str = "periods"
 
   def __post_init__(self):
     if not 0 < self.rho <= 1:
@@ -55,6 +60,9 @@ class HomeostasisConfig:
       raise ValueError(f"gamma must be in (0, 1], got {self.gamma}")
     if self.k < 1:
       raise ValueError(f"k must be >= 1, got {self.k}")
+    if self.cadence not in CADENCES:
+      raise ValueError(f"homeostasis.cadence must be one of {', '.join(CADENCES)}; "
+                       f"got {self.cadence!r}")
 
 
 def value_promise_discrepancy(v_start: jax.Array, rewards: jax.Array, v_end: jax.Array,

@@ -15,13 +15,23 @@ Middle decisions (every c env steps), per env:
     after an explore period: a new exploit period, with a fresh window and (``reset_stats``)
       fresh homeostasis statistics
 
+With ``cadence="code"`` (the paper's code's counter) the periods differ, the window not:
+
+    after the starting phase (``restart``): explore for k - 1 more Middle decisions, a check
+    switch: explore for k Middle decisions (300 env steps at k = 30, c = 10), then a check
+    no switch: exploit for one segment, then a check
+    the window slides at every decision, explore ones included (the first check after the
+      starting phase sees k - 1 segments and restart's padding: V repeated, reward 0);
+      fresh statistics at the check that ends an explore period (``reset_stats``)
+
 Deliberate differences from the paper's code (docs/fidelity.md): explore periods last
-the stated 100 steps (its counter bug makes them about 300); homeostasis divides by the
-standard deviation (it divides by the variance squared); after its first check it keeps
-checking every decision but with a window of one segment and no reward (its accumulators are
-reset and never refilled): here the window slides over the last k segments; D is in the
-Middle critic's units (0.1-scaled segment rewards; its code subtracts raw sums); tau =
-min(n, 100 / rho) with n the checks since the reset (its code passes 30 every time).
+the stated 100 steps (its counter bug makes them about 300; ``cadence="code"`` keeps it);
+homeostasis divides by the standard deviation (it divides by the variance squared); after
+its first check it keeps checking every decision but with a window of one segment and no
+reward (its accumulators are reset and never refilled): here the window slides over the last
+k segments; D is in the Middle critic's units (0.1-scaled segment rewards; its code
+subtracts raw sums); tau = min(n, 100 / rho) with n the checks since the reset (its code
+passes 30 every time).
 """
 
 from __future__ import annotations
@@ -62,12 +72,16 @@ def make_informed_switch(config: homeostasis.HomeostasisConfig, explore_mode: in
   """The trigger of Middle decisions every ``c`` env steps (``explore_steps`` a multiple of c)."""
   k = config.k
   explore_decisions = config.explore_steps // c
+  code = config.cadence == "code"
+  restart_left = k - 1 if code else 0  # the code's counter: k - 1 explore decisions to go
 
   def restart(state: TriggerState, v):
-    """A new exploit period from a state of value v: fresh window (and statistics)."""
+    """A new exploit period from a state of value v: fresh window (and statistics); with
+    ``cadence="code"`` k - 1 explore decisions first (the end of the starting phase)."""
     h = homeostasis.init() if config.reset_stats else state.homeostasis
     return state.replace(homeostasis=h, values=jp.full((k + 1,), v), rewards=jp.zeros((k,)),
-                         filled=jp.zeros((), jp.int32), explore_left=jp.zeros((), jp.int32))
+                         filled=jp.zeros((), jp.int32),
+                         explore_left=jp.full((), restart_left, jp.int32))
 
   def init(v0):
     zero = jp.zeros((), jp.int32)
@@ -106,5 +120,27 @@ def make_informed_switch(config: homeostasis.HomeostasisConfig, explore_mode: in
     new = jax.tree.map(lambda a, b: jp.where(exploring, a, b), explored, exploited)
     return new, switch & ~exploring
 
+  def code_check(state: TriggerState, x, key, rho):
+    """The code's cadence: homeostasis checks x unless an explore run goes on (fresh
+    statistics at the check that ends one)."""
+    fresh = homeostasis.init() if config.reset_stats else state.homeostasis
+    ending = state.explore_left == 1
+    h = jax.tree.map(lambda a, b: jp.where(ending, a, b), fresh, state.homeostasis)
+    h, switch = homeostasis.update(h, x, key, rho)
+    check = state.explore_left <= 1
+    h = jax.tree.map(lambda new, old: jp.where(check, new, old), h, state.homeostasis)
+    return h, switch & check
+
+  def decide_code(state: TriggerState, v, reward, key, rho=config.rho):
+    """``decide`` with ``cadence="code"``: the window slides at every decision, explore ones
+    included; a switch explores for k decisions."""
+    values = jp.concatenate([state.values[1:], v[None]])
+    rewards = jp.concatenate([state.rewards[1:], reward[None]])
+    x = homeostasis.value_promise_discrepancy(values[0], rewards, values[k], config.gamma)
+    h, switch = code_check(state, x, key, rho)
+    left = jp.where(switch, k, jp.maximum(state.explore_left - 1, 0)).astype(jp.int32)
+    return state.replace(homeostasis=h, values=values, rewards=rewards,
+                         filled=jp.minimum(state.filled + 1, k), explore_left=left), switch
+
   return InformedSwitch(config=config, explore_mode=explore_mode, init=init, restart=restart,
-                        mode=mode, decide=decide)
+                        mode=mode, decide=decide_code if code else decide)
