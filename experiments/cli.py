@@ -39,14 +39,15 @@ import typing
 
 from envs import ant_maze
 from nonmono_jax import config as config_lib
-from nonmono_jax import io, methods, plan as plan_lib, run, runlock, sinks
+from nonmono_jax import io, methods, plan as plan_lib, processes, run, runlock, sinks
 from nonmono_jax.plan import Plan  # noqa: F401 - for callers of plan_from_args
 from nonmono_jax.run import Clock, NonFinite, TimeLimit  # noqa: F401 - the run's, used in tests
 
 EXIT_FAILED, EXIT_BAD_INPUT, EXIT_TIME_LIMIT = 1, 2, 3
 EXIT_NON_FINITE = EXIT_FAILED
 # What --resume may change: how this process runs, not what the run is.
-RESUME_ALLOWED = ("resume", "time_limit", "no_progress", "tensorboard")
+RESUME_ALLOWED = ("resume", "time_limit", "no_progress", "tensorboard", "distributed",
+                  "coordinator", "num_processes", "process_id")
 
 
 # --- config fields as command-line flags ------------------------------------------------------
@@ -146,6 +147,17 @@ def make_parser(task: str) -> argparse.ArgumentParser:
                    help="the ant's physics: c, MuJoCo's C engine called from inside the jitted "
                         "step (10-25x MJX on a CPU); mjx, the MJX pipeline (for accelerators); "
                         "auto: c on a CPU, mjx on an accelerator; --resume keeps the run's")
+  p.add_argument("--distributed", action="store_true",
+                 help="one run over several processes (JAX's multi-process runtime): the "
+                      "lanes are split over every process's devices, process 0 writes the run "
+                      "folder (which all must see); on SLURM or Open MPI the processes find "
+                      "each other, elsewhere give the three flags below (docs/cluster.md)")
+  p.add_argument("--coordinator", default=None, metavar="HOST:PORT",
+                 help="with --distributed: process 0's address and a free port")
+  p.add_argument("--num-processes", type=int, default=None, metavar="N",
+                 help="with --distributed: the run's process count")
+  p.add_argument("--process-id", type=int, default=None, metavar="I",
+                 help="with --distributed: this process's index, 0 to N - 1")
   p.add_argument("--no-progress", action="store_true", help="no progress bar")
   p.add_argument("--tensorboard", action="store_true",
                  help="also write TensorBoard event files to OUT/tensorboard/<method>")
@@ -199,29 +211,48 @@ def main(task: str, argv=None) -> int:
   args = parser.parse_args(argv)
   try:
     _use_cpu_devices(args)
+    _join(args)
     plan = _plan(task, args, argv)
     plan_lib.check_memory(plan)
   except ValueError as e:
     parser.error(str(e))
   for warning in plan.warnings:
     print(f"warning: {warning}", file=sys.stderr, flush=True)
+  code = EXIT_BAD_INPUT
   try:
     with run.open_folder(plan, resume=args.resume is not None):
-      return _run(plan, args)
+      code = _run(plan, args)
   except (run.BadFolder, runlock.Locked, io.MetricsError, io.CheckpointError) as e:
     parser.error(str(e))
+  finally:
+    processes.leave(code)
+  return code
 
 
 def _use_cpu_devices(args: argparse.Namespace) -> None:
   """The CPU device count, before JAX starts: ``--cpu-devices``, or on ``--resume`` the count
-  the run trained on (``config.json``), so that it continues as it ran."""
+  the run trained on (``config.json``; per process), so that it continues as it ran."""
   n = args.cpu_devices
   if args.resume:
     payload = plan_lib.read_config(args.resume)
     if isinstance(payload, dict) and payload.get("platform") == "cpu":
       n = payload.get("device_count")
+      procs = payload.get("processes", 1)
+      if isinstance(n, int) and isinstance(procs, int) and procs > 1:
+        n //= procs
   if isinstance(n, int):
     run.use_cpu_devices(n)
+
+
+def _join(args: argparse.Namespace) -> None:
+  """``--distributed``: join the run's other processes, before JAX starts (processes.join)."""
+  given = [f"--{n.replace('_', '-')}" for n in ("coordinator", "num_processes", "process_id")
+           if getattr(args, n) is not None]
+  if not args.distributed:
+    if given:
+      raise ValueError(f"{', '.join(given)} need --distributed")
+    return
+  processes.join(args.coordinator, args.num_processes, args.process_id)
 
 
 def _plan(task: str, args: argparse.Namespace, argv) -> plan_lib.Plan:
@@ -231,7 +262,7 @@ def _plan(task: str, args: argparse.Namespace, argv) -> plan_lib.Plan:
     raise ValueError(f"--time-limit must be a positive number of seconds, got {limit}")
   if args.resume is None:
     plan = plan_from_args(task, args)
-    if os.path.lexists(plan.out):
+    if os.path.lexists(plan.out) and processes.writer():  # process 0 creates it
       if not os.path.isdir(plan.out):
         raise ValueError(f"--out {plan.out} exists and is not a folder")
       if set(os.listdir(plan.out)) - {runlock.NAME}:  # a lock alone: a start that failed
@@ -260,22 +291,28 @@ def _given_dests(task: str, argv) -> set[str]:
 
 def _run(plan: plan_lib.Plan, args: argparse.Namespace) -> int:
   """Trains every method of the plan; the exit code (0, 1 failed, 3 time limit)."""
-  outputs = [sinks.MetricsCsv(plan.out), sinks.JsonLines(plan.out),
-             sinks.Progress(plan, enabled=not args.no_progress)]
-  if args.tensorboard:
-    outputs.append(sinks.TensorBoard(plan.out))
+  writer = processes.writer()  # the others of a multi-process run write nothing of their own
+  outputs, log = [], lambda *a, **k: None
+  if writer:
+    outputs = [sinks.MetricsCsv(plan.out), sinks.JsonLines(plan.out),
+               sinks.Progress(plan, enabled=not args.no_progress)]
+    if args.tensorboard:
+      outputs.append(sinks.TensorBoard(plan.out))
+    log = print
   physics = f", {plan.physics} physics" if plan.physics else ""
-  print(f"{plan.task}: {', '.join(plan.configs)} x {plan.spec.seeds} seeds x {plan.spec.steps} "
-        f"steps ({plan.preset}{physics}) -> {plan.out}", flush=True)
-  clock = Clock.starting_now(args.time_limit, os.path.join(plan.out, "timing.json"))
+  across = f", {processes.count()} processes" if processes.count() > 1 else ""
+  log(f"{plan.task}: {', '.join(plan.configs)} x {plan.spec.seeds} seeds x {plan.spec.steps} "
+      f"steps ({plan.preset}{physics}{across}) -> {plan.out}", flush=True)
+  clock = Clock.starting_now(args.time_limit,
+                             os.path.join(plan.out, "timing.json") if writer else None)
   try:
     with run.remembering_ctrl_c(), sinks.closing(outputs):
-      run.run_plan(plan, outputs, clock)
+      run.run_plan(plan, outputs, clock, log)
   except NonFinite as e:
     print(f"error: {e}", file=sys.stderr)
     return EXIT_FAILED
   except TimeLimit as e:
-    print(f"time limit: {e}", flush=True)
+    log(f"time limit: {e}", flush=True)
     return EXIT_TIME_LIMIT
   except (io.MetricsError, io.CheckpointError):
     raise
@@ -285,7 +322,7 @@ def _run(plan: plan_lib.Plan, args: argparse.Namespace) -> int:
     print(f"error: {_describe(e)}; {_saved(plan)}; continue with --resume {plan.out} "
           f"(NONMONO_TRACEBACK=1 shows the traceback)", file=sys.stderr, flush=True)
     return EXIT_FAILED
-  print(f"done: {os.path.join(plan.out, 'metrics.csv')}", flush=True)
+  log(f"done: {os.path.join(plan.out, 'metrics.csv')}", flush=True)
   return 0
 
 

@@ -28,8 +28,9 @@ import jax
 import jax.numpy as jp
 import numpy as np
 import orbax.checkpoint as ocp
+from flax import struct
 
-from nonmono_jax import hierarchy
+from nonmono_jax import hierarchy, processes
 
 LOSSES = ("low/critic_loss", "low/actor_loss", "middle/critic_loss", "middle/actor_loss",
           "middle_ppo/loss", "top/loss")
@@ -77,6 +78,24 @@ def write_json(path: str, payload: dict) -> None:
 def read_json(path: str) -> dict:
   with open(path) as f:
     return json.load(f)
+
+
+@struct.dataclass
+class RowCounters:
+  """What a chunk's rows need of the train state: per lane, small (gathered from every
+  process of a multi-process run, ``processes.gather``)."""
+
+  mode_steps: Any
+  mode_decisions: Any
+  mode_steps_after_start: Any
+  mode_decisions_after_start: Any
+  s_e: Any
+  eval_distance: Any
+  eval_return: Any
+
+  @classmethod
+  def of(cls, states) -> "RowCounters":
+    return cls(**{f.name: getattr(states, f.name) for f in dataclasses.fields(cls)})
 
 
 def chunk_rows(task: str, method: str, env_step: int, states, metrics: dict,
@@ -309,16 +328,24 @@ class CheckpointError(RuntimeError):
   """No checkpoint of a method restores."""
 
 
+@jax.jit
+def _finite(parts: dict) -> dict:
+  """Per part, per lane: every value finite (computed where the lanes live)."""
+  return {k: jax.tree.reduce(jp.logical_and, jax.tree.map(
+      lambda x: jp.all(jp.isfinite(x), axis=tuple(range(1, x.ndim))), v))
+          for k, v in parts.items()}
+
+
 def first_non_finite(states, metrics: dict) -> tuple[int, str] | None:
-  """(seed, where) of the first NaN or Inf in the learners' parameters or the chunk's losses."""
-  parts = dict(_learner_params(states))
-  for name, value in metrics.items():
-    if name.split("/")[0] in parts or name in ("reward",):
-      parts[f"metric {name}"] = value
-  finite = {k: np.asarray(jax.tree.reduce(
-      jp.logical_and, jax.tree.map(lambda x: jp.all(jp.isfinite(x), axis=tuple(range(1, x.ndim))),
-                                   v))) for k, v in parts.items()}
-  n = np.asarray(states.s_e).shape[0]
+  """(seed, where) of the first NaN or Inf in the learners' parameters or the chunk's losses
+  (the per-lane verdicts gathered from every process of a multi-process run)."""
+  finite = processes.gather(_finite(dict(_learner_params(states))))
+  levels = set(finite)
+  for name, value in metrics.items():  # per lane already (gathered by the caller)
+    if name.split("/")[0] in levels or name in ("reward",):
+      v = np.asarray(value)
+      finite[f"metric {name}"] = np.isfinite(v.reshape(v.shape[0], -1)).all(axis=1)
+  n = np.asarray(next(iter(finite.values()))).shape[0] if finite else 0
   for seed in range(n):
     for name, ok in finite.items():
       if not ok[seed]:

@@ -256,8 +256,10 @@ def check_plan(task: str, spec: methods.RunSpec, configs: dict) -> None:
     config.check_env(env)
     validation.check_value(f"--steps x num_envs of {method}", spec.steps * config.num_envs)
   if spec.seeds % jax.device_count():
+    across = (f": {jax.process_count()} processes x {jax.local_device_count()}"
+              if jax.process_count() > 1 else "")
     raise ValueError(f"--seeds ({spec.seeds}) must be a multiple of the device count "
-                     f"({jax.device_count()}; see --cpu-devices)")
+                     f"({jax.device_count()}{across}; see --cpu-devices)")
 
 
 def state_bytes(plan: Plan, names) -> int:
@@ -318,7 +320,8 @@ def to_json(plan: Plan) -> dict:
           "physics": plan.physics,
           "versions": _versions(), "python": platform.python_version(),
           "device": str(jax.devices()[0].device_kind), "platform": jax.default_backend(),
-          "device_count": jax.device_count(), "host": host(), "command": " ".join(sys.argv)}
+          "device_count": jax.device_count(), "processes": jax.process_count(),
+          "host": host(), "command": " ".join(sys.argv)}
 
 
 # The instruction sets XLA:CPU's code (and its matmul kernels) may use: two CPUs that differ in
@@ -403,6 +406,7 @@ def from_json(payload, out: str, task: str | None = None) -> Plan:
       warnings += [f"{path}: {method} {note}" for note in notes]
     check_plan(payload["task"], spec, configs)
     physics = saved_physics(payload)
+    check_process_count(payload)
     moved = host_differs(payload)
     if moved:
       warnings.append(f"{path}: started on another machine type ({moved}): the rows after "
@@ -412,6 +416,17 @@ def from_json(payload, out: str, task: str | None = None) -> Plan:
   return Plan(task=payload["task"], preset=payload["preset"], seed=payload["seed"], out=out,
               spec=spec, configs=configs, overrides=overrides, widen=widen, warnings=warnings,
               variants=variants, grouped=payload.get("grouped", False) is True, physics=physics)
+
+
+def check_process_count(payload) -> None:
+  """A run resumes with the process count it was made with (each process restores the
+  checkpoint shards of its own lanes)."""
+  made = payload.get("processes", 1)
+  if made != jax.process_count():
+    how = (f"--distributed with {made} processes" if made > 1 else "one process, without "
+           "--distributed")
+    raise ValueError(f"the run was made by {made} process(es), this is {jax.process_count()}: "
+                     f"resume it with {how}")
 
 
 def saved_physics(payload) -> str | None:

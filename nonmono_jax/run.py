@@ -30,7 +30,7 @@ import time
 import jax
 import numpy as np
 
-from nonmono_jax import io, runlock
+from nonmono_jax import io, processes, runlock
 from nonmono_jax.plan import Plan, load_run, new_run  # noqa: F401 - the run's library entry points
 from nonmono_jax.plan import to_json
 
@@ -128,6 +128,10 @@ def open_folder(plan: Plan, resume: bool = False):
   """Creates (a new run) and locks (``runlock``) the run folder for the block; a new run's
   must be empty and gets ``config.json``, a resumed one must be complete. Raises BadFolder,
   runlock.Locked or io.MetricsError."""
+  if not processes.writer():  # process 0 of a multi-process run owns the folder
+    processes.barrier("run folder open")
+    yield plan
+    return
   try:
     os.makedirs(plan.out, exist_ok=resume)
   except FileExistsError:
@@ -140,6 +144,7 @@ def open_folder(plan: Plan, resume: bool = False):
     except OSError as e:
       raise BadFolder(f"{plan.out}: cannot lock the run folder ({e.strerror})") from None
     _check_folder(plan, resume)
+    processes.barrier("run folder open")
     yield plan
 
 
@@ -184,7 +189,6 @@ def run_group(plan: Plan, names, outputs=(), clock: Clock | None = None, log=pri
   one ChunkResult per variant and chunk; see the module doc. Each variant keeps its own
   checkpoints (its lanes: the shape of a run of it alone), rows and sink files."""
   spec, names = plan.spec, list(names)
-  num_envs = plan.configs[names[0]].num_envs
   trainer = plan.trainer(names)
   clock = clock or Clock()
   ckpts = [io.Checkpoints(os.path.join(plan.out, "checkpoints", n)) for n in names]
@@ -192,6 +196,17 @@ def run_group(plan: Plan, names, outputs=(), clock: Clock | None = None, log=pri
     log(f"{', '.join(names)}: one program, {len(names)} variants x {spec.seeds} seeds = "
         f"{trainer.num_lanes} lanes")
   try:
+    yield from _train(plan, names, trainer, ckpts, outputs, clock, log)
+  finally:
+    for c in ckpts:
+      c.close()
+
+
+def _train(plan: Plan, names, trainer, ckpts, outputs, clock: Clock, log):
+  """``run_group``'s loop: restore, then chunk by chunk (an exchange with a lost process of a
+  multi-process run raises ``processes.ProcessLost``)."""
+  spec, num_envs = plan.spec, plan.configs[names[0]].num_envs
+  with processes.lost_peers():
     start, states = _restore(trainer, names, ckpts, plan.seed, log)
     if start:
       log(f"{', '.join(names)}: resumed from step {start}")
@@ -201,7 +216,7 @@ def run_group(plan: Plan, names, outputs=(), clock: Clock | None = None, log=pri
     timing = _Timing()
     for t0 in range(start, spec.steps, spec.chunk):
       # At least one chunk per process: a limit shorter than start-up + a chunk still advances.
-      if not clock.allows(timing.chunk_s) and clock.progressed:
+      if processes.agree(not clock.allows(timing.chunk_s) and clock.progressed):
         raise TimeLimit("; ".join(_stop_for_time(plan, n, c, t0, trainer.lanes(states, v))
                                   for v, (n, c) in enumerate(zip(names, ckpts))))
       states, results = _chunk(plan, names, trainer, states, t0, ckpts, timing)
@@ -217,16 +232,14 @@ def run_group(plan: Plan, names, outputs=(), clock: Clock | None = None, log=pri
         raise KeyboardInterrupt
       timing.chunk_done(clock, spec.chunk * trainer.num_lanes * num_envs)
       yield from results
-  finally:
-    for c in ckpts:
-      c.close()
 
 
 def _restore(trainer, names, ckpts, seed: int, log):
   """(step, lanes) from each variant's newest checkpoint that restores; variants whose newest
   differ (a stop between their saves) all restart from the oldest of them."""
   fresh = trainer.init(jax.random.PRNGKey(seed))
-  found = [c.restore_newest(trainer.lanes(fresh, v), log) for v, c in enumerate(ckpts)]
+  found = [c.restore_newest(trainer.lanes(fresh, v), log, move_aside=processes.writer())
+           for v, c in enumerate(ckpts)]
   start = min(step or 0 for step, _ in found)
   if len(names) == 1:
     return start, found[0][1]
@@ -234,7 +247,9 @@ def _restore(trainer, names, ckpts, seed: int, log):
   for v, (c, (step, state)) in enumerate(zip(ckpts, found)):
     if (step or 0) != start:
       log(f"{names[v]}: back to step {start}, the step its group's other variants reached")
-      c.set_aside_after(start, log)
+      if processes.writer():
+        c.set_aside_after(start, log)
+      processes.barrier(f"{names[v]} set aside")
       state = c.restore(start, trainer.lanes(fresh, v)) if start else trainer.lanes(fresh, v)
     parts.append(state)
   return start, jax.tree.map(lambda *xs: jax.numpy.concatenate(xs), *parts)
@@ -265,7 +280,8 @@ def _chunk(plan: Plan, names, trainer, states, t0: int, ckpts, timing: _Timing):
   timing.t_chunk = time.monotonic()
   states, metrics = trainer.chunk(states, t0)
   t_end = t0 + spec.chunk
-  bad = io.first_non_finite(states, metrics)  # waits for the chunk
+  metrics = processes.gather(metrics)  # waits for the chunk; every lane on every process
+  bad = io.first_non_finite(states, metrics)
   what = "NaN or Inf in {}"
   if bad is None:
     bad, what = first_unstable(metrics), "unstable physics (MuJoCo reset the simulation) in {}"
@@ -276,14 +292,15 @@ def _chunk(plan: Plan, names, trainer, states, t0: int, ckpts, timing: _Timing):
                     f"{t0}-{t_end}; " + (f"the last good checkpoint is step {last}"
                                          if last is not None else
                                          "no checkpoint was saved before it"))
-  metrics = jax.device_get(metrics)
+  counters = processes.gather(io.RowCounters.of(states))
   seconds = time.monotonic() - timing.t_chunk
   rate = _rate_after(timing, spec.chunk * trainer.num_lanes * num_envs)
   results = []
   for v, name in enumerate(names):
     lanes, lane_metrics = trainer.lanes(states, v), trainer.lanes(metrics, v)
-    rows = io.chunk_rows(plan.task, name, t_end * num_envs, lanes, lane_metrics,
-                         spec.episode_length, t_end >= plan.configs[name].first_eval_steps)
+    rows = io.chunk_rows(plan.task, name, t_end * num_envs, trainer.lanes(counters, v),
+                         lane_metrics, spec.episode_length,
+                         t_end >= plan.configs[name].first_eval_steps)
     results.append(ChunkResult(method=name, step=t_end, env_step=t_end * num_envs, rows=rows,
                                metrics=lane_metrics, states=lanes, seconds=seconds, rate=rate))
   return states, results
