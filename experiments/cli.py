@@ -37,11 +37,15 @@ import os
 import sys
 import typing
 
-from envs import ant_maze
-from nonmono_jax import config as config_lib
-from nonmono_jax import io, methods, plan as plan_lib, processes, run, runlock, sinks
-from nonmono_jax.plan import Plan  # noqa: F401 - for callers of plan_from_args
-from nonmono_jax.run import Clock, NonFinite, TimeLimit  # noqa: F401 - the run's, used in tests
+from experiments import cores
+
+cores.share(sys.argv[1:])  # before JAX loads: this process's share of a machine it shares
+
+from envs import ant_maze  # noqa: E402
+from nonmono_jax import config as config_lib  # noqa: E402
+from nonmono_jax import io, methods, plan as plan_lib, processes, run, runlock, sinks  # noqa: E402
+from nonmono_jax.plan import Plan  # noqa: E402,F401 - for callers of plan_from_args
+from nonmono_jax.run import Clock, NonFinite, TimeLimit  # noqa: E402,F401 - the run's, in tests
 
 EXIT_FAILED, EXIT_BAD_INPUT, EXIT_TIME_LIMIT = 1, 2, 3
 EXIT_NON_FINITE = EXIT_FAILED

@@ -15,6 +15,12 @@ Between chunks the host side needs a few small things from every process:
 - ``writer()``: process 0 owns the run folder (``config.json``, the lock, ``metrics.csv``,
   the progress bar); the others write nothing there but their checkpoint shards (orbax).
 
+Processes on one machine should each have their own cores: XLA:CPU sizes its thread pools
+by the cores a process may use, and two processes whose pools share the same cores run at
+0.7x of one process with two CPU devices (``benchmarks/processes.py``). Launchers do this
+(``srun --cpu-bind=cores``, ``mpirun --bind-to core``, ``taskset``); the experiment command
+does it for processes it knows share this machine (``experiments/cores.py``).
+
 CPU processes exchange these through gloo (jax >= 0.5.1). A process that dies makes the next
 exchange fail on the others (``jax_enable_recoverability`` keeps them alive to say so,
 instead of the runtime aborting them with a C++ stack trace); one that stops answering
