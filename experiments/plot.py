@@ -78,12 +78,25 @@ def load(dirs) -> list[dict]:
   file and line. A half-written last line (a run killed mid-row) is skipped, as resume does.
 
   A folder is a run folder (with ``metrics.csv``) or holds run folders at any depth (a
-  results tree such as ``results/pointpush/<method>/``)."""
-  rows = []
+  results tree such as ``results/pointpush/<method>/``). Folders that repeat a task and method
+  (independent runs of a job array) add their seeds (``_merged``)."""
+  rows, runs = [], defaultdict(int)  # (task, method) -> run folders seen with it
   for d in dirs:
     for path in _metrics_files(d):
-      rows.extend(_read(path))
+      rows.extend(_merged(_read(path), runs))
   return rows
+
+
+def _merged(rows, runs) -> list[dict]:
+  """A folder's rows, its seeds renamed ``k/seed`` if k earlier folders hold the same task and
+  method (a job array of independent runs, ``--seed`` 0, 1, ...: their seeds merge into one
+  set, not onto each other)."""
+  keys = {(r["task"], r["method"]) for r in rows}
+  earlier = {key: runs[key] for key in keys}
+  for key in keys:
+    runs[key] += 1
+  return [r if not earlier[r["task"], r["method"]] else
+          {**r, "seed": f"{earlier[r['task'], r['method']]}/{r['seed']}"} for r in rows]
 
 
 def _metrics_files(d: str) -> list[str]:
