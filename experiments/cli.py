@@ -309,6 +309,8 @@ def _run(plan: plan_lib.Plan, args: argparse.Namespace) -> int:
       f"steps ({plan.preset}{physics}{across}) -> {plan.out}", flush=True)
   clock = Clock.starting_now(args.time_limit,
                              os.path.join(plan.out, "timing.json") if writer else None)
+  processes.watch(lambda why: print(f"error: ProcessLost: {why}; {_saved(plan)}; continue "
+                                    f"with --resume {plan.out}", file=sys.stderr, flush=True))
   try:
     with run.remembering_ctrl_c(), sinks.closing(outputs):
       run.run_plan(plan, outputs, clock, log)

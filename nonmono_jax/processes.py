@@ -34,6 +34,7 @@ import contextlib
 import os
 import re
 import sys
+import threading
 import time
 
 import jax
@@ -69,6 +70,35 @@ def join(coordinator: str | None = None, num_processes: int | None = None,
     raise ValueError(f"--distributed: cannot join the run's processes ({first[:200]})") from None
 
 
+def watch(on_lost, every_s: float = 5.0) -> None:
+  """Starts a thread that asks the runtime every ``every_s`` which processes are alive; when
+  one is not (dead, or silent for ``HEARTBEAT_S``), ``on_lost(message)`` runs and this
+  process ends with exit code 1. A process stuck in an exchange with a stopped (not dead)
+  one would otherwise wait for ever: gloo has no deadline."""
+  if count() == 1:
+    return
+  client, everyone = distributed.global_state.client, list(range(count()))
+
+  def loop():
+    while True:
+      time.sleep(every_s)
+      try:
+        gone = sorted(set(everyone) - set(client.get_live_nodes(everyone)))
+      except Exception as e:  # noqa: BLE001 - the runtime's service is gone (process 0 died)
+        gone, why = None, (str(e).strip().splitlines() or [type(e).__name__])[0][:200]
+      if gone == [] or _LEAVING:
+        continue
+      lost = f"process(es) {', '.join(map(str, gone))}" if gone else f"the runtime ({why})"
+      _LOST.append(lost)
+      with contextlib.suppress(Exception):
+        on_lost(f"process {index()} of {count()} lost {lost}")
+      sys.stdout.flush()
+      sys.stderr.flush()
+      os._exit(1)
+
+  threading.Thread(target=loop, name="processes.watch", daemon=True).start()
+
+
 def count() -> int:
   return jax.process_count()
 
@@ -83,6 +113,7 @@ def writer() -> bool:
 
 
 _LOST = []  # set once an exchange failed: the others are not waited for again
+_LEAVING = []  # set when the run ends: processes leaving are not lost
 
 
 @contextlib.contextmanager
@@ -126,6 +157,7 @@ def leave(exit_code: int, wait_s: float = 30.0) -> None:
   already closed."""
   if count() == 1:
     return
+  _LEAVING.append(True)
   if _LOST and not writer():
     sys.stdout.flush()
     sys.stderr.flush()

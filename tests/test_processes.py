@@ -92,6 +92,29 @@ def test_a_killed_process_stops_the_other_with_one_line_and_resume_finishes(tmp_
       (str(s), str(t)) for s in range(2) for t in range(200, 6001, 200))
 
 
+def test_a_stopped_process_is_declared_lost_after_the_heartbeat_timeout(tmp_path):
+  """A process that stops answering (SIGSTOP: alive, silent) would leave the other waiting in
+  an exchange for ever; the watch thread declares it lost after the runtime's heartbeat
+  timeout and ends the run with one line."""
+  import signal
+  from nonmono_jax import processes
+  out = str(tmp_path / "run")
+  argv = TINY_RUN + ["--method", "hiro", "--cpu-devices", "1", "--steps", "400000"]
+  procs = _processes(argv + ["--out", out])
+  ckpt = os.path.join(out, "checkpoints", "hiro", "400")
+  deadline = time.time() + 300
+  while not os.path.isdir(ckpt) and time.time() < deadline and procs[0].poll() is None:
+    time.sleep(0.2)
+  procs[1].send_signal(signal.SIGSTOP)
+  try:
+    code = procs[0].wait(processes.HEARTBEAT_S + 60)
+    err = procs[0].communicate()[1]
+  finally:
+    procs[1].kill()
+  assert code == 1
+  assert "error: ProcessLost: process 0 of 2 lost process(es) 1;" in err, err[-2000:]
+
+
 def test_distributed_flags_are_checked():
   from experiments import cli
   with pytest.raises(SystemExit) as e:
