@@ -298,7 +298,7 @@ def _run(plan: plan_lib.Plan, args: argparse.Namespace) -> int:
   writer = processes.writer()  # the others of a multi-process run write nothing of their own
   outputs, log = [], lambda *a, **k: None
   if writer:
-    outputs = [sinks.MetricsCsv(plan.out), sinks.JsonLines(plan.out),
+    outputs = [sinks.MetricsCsv(plan.out, plan), sinks.JsonLines(plan.out),
                sinks.Progress(plan, enabled=not args.no_progress)]
     if args.tensorboard:
       outputs.append(sinks.TensorBoard(plan.out))

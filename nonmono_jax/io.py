@@ -178,6 +178,29 @@ class MetricsFile:
     return dropped
 
 
+def check_rows(path: str, method: str, env_step: int, seeds: int, chunk_env_steps: int) -> None:
+  """``method``'s rows up to ``env_step`` (its checkpoint's) are exactly one per seed and
+  chunk, in order; raises MetricsError naming the first that is not (resume then refuses:
+  rows lost or doubled would not come back)."""
+  want = [(k * chunk_env_steps, seed) for k in range(1, env_step // chunk_env_steps + 1)
+          for seed in range(seeds)]
+  have = []
+  for line in good_lines(path):
+    row = dict(zip(COLUMNS, next(csv.reader([line]))))
+    if row["method"] == method and int(row["env_step"]) <= env_step:
+      have.append((int(row["env_step"]), int(row["seed"])))
+  if have == want:
+    return
+  i = next((i for i, (a, b) in enumerate(zip(have, want)) if a != b), min(len(have), len(want)))
+  what = (f"seed {have[i][1]} at env step {have[i][0]} where seed {want[i][1]} at "
+          f"{want[i][0]} belongs" if i < min(len(have), len(want)) else
+          f"seed {want[i][1]} at env step {want[i][0]} is missing" if i < len(want) else
+          f"seed {have[i][1]} at env step {have[i][0]} is one too many")
+  raise MetricsError(f"{path}: {method} has {len(have)} rows up to env step {env_step}, where "
+                     f"its checkpoint needs {len(want)} (one per seed and chunk); the first "
+                     f"wrong one: {what}. Put back the file the run wrote, or start a new run")
+
+
 def good_lines(path: str) -> list[str]:
   """The data lines of a ``metrics.csv``, without a half-written last line (one a kill cut
   short: no final newline, or the wrong number of fields); raises MetricsError otherwise."""

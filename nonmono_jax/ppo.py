@@ -76,10 +76,9 @@ class PPOConfig:
     object.__setattr__(self, "hidden", tuple(int(h) for h in self.hidden))
     if not self.hidden or min(self.hidden) <= 0:
       raise ValueError(f"hidden must be non-empty positive sizes, got {self.hidden}")
-    if self.lr_actor <= 0:
-      raise ValueError(f"lr_actor must be positive, got {self.lr_actor}")
-    if self.lr_critic <= 0:
-      raise ValueError(f"lr_critic must be positive, got {self.lr_critic}")
+    for name in ("lr_actor", "lr_critic"):  # the same bounds as TD3's (td3.TD3Config)
+      if not 0 < getattr(self, name) <= 1:
+        raise ValueError(f"{name} must be in (0, 1], got {getattr(self, name)}")
     if not 0 < self.gamma <= 1:
       raise ValueError(f"gamma must be in (0, 1], got {self.gamma}")
     if not 0 < self.clip < 1:

@@ -34,12 +34,18 @@ def closing(sinks):
 
 
 class MetricsCsv:
-  """``metrics.csv`` (``io.MetricsFile``): rows flushed to disk before the chunk's checkpoint."""
+  """``metrics.csv`` (``io.MetricsFile``): rows flushed to disk before the chunk's checkpoint.
+  Given the run's ``plan``, a resume also checks that the rows up to the checkpoint are one
+  per seed and chunk (``io.check_rows``)."""
 
-  def __init__(self, out: str):
+  def __init__(self, out: str, plan=None):
     self.file = io.MetricsFile(os.path.join(out, "metrics.csv"))
+    self.plan = plan
 
   def begin(self, method: str, env_step: int) -> None:
+    if self.plan is not None and env_step:  # before anything is dropped: refused untouched
+      spec, num_envs = self.plan.spec, self.plan.configs[method].num_envs
+      io.check_rows(self.file.path, method, env_step, spec.seeds, spec.chunk * num_envs)
     self.file.truncate(method, env_step)
 
   def write(self, result) -> None:

@@ -9,7 +9,8 @@ bound at all while the jitted program stores it in an int32. This walks a datacl
 recursively (so fields added later are covered without a change here) and checks every leaf:
 
 - ``float``: finite, unless the field says ``metadata={"infinite_ok": True}`` (inf allowed,
-  NaN never);
+  NaN never), and within float32's range, in which the jitted program computes (a Python
+  float of 1e39 is inf there);
 - ``int``: within int32 (``bool`` is left alone);
 - tuples and sequences of those: element-wise, named ``field[i]``.
 
@@ -24,6 +25,7 @@ import typing
 
 INT32_MAX = 2**31 - 1
 INT32_MIN = -2**31
+FLOAT32_MAX = 3.4028234663852886e38  # numpy.finfo(numpy.float32).max
 
 
 def _name(prefix: str, field: str, flags: bool) -> str:
@@ -41,6 +43,9 @@ def check_value(name: str, value, infinite_ok: bool = False) -> None:
   if isinstance(value, float):
     if math.isnan(value) or (math.isinf(value) and not infinite_ok):
       raise ValueError(f"{name} must be a finite number, got {value}")
+    if math.isfinite(value) and abs(value) > FLOAT32_MAX:
+      raise ValueError(f"{name} must fit in a float32 (|value| <= {FLOAT32_MAX:.4g}), got "
+                       f"{value}")
   elif isinstance(value, int) and not INT32_MIN <= value <= INT32_MAX:
     raise ValueError(f"{name} must fit in an int32 (|value| <= {INT32_MAX}), got {value}")
 

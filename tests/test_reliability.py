@@ -77,6 +77,10 @@ def test_a_second_writer_exits_2_naming_the_holder_and_a_dead_holder_leaves_no_l
     (["--low.policy_noise", "nan"], "low.policy_noise must be a finite number"),
     (["--top.ppo.lr_actor", "inf"], "top.ppo.lr_actor must be a finite number"),
     (["--low.lr_actor", "2"], "low.lr_actor must be in (0, 1]"),
+    (["--goal_range", "1e39", "1e39", "0"], "goal_range[0] must fit in a float32"),
+    (["--top.alpha", "0", "0.4", "1e39"], "top.alpha[2] must fit in a float32"),
+    (["--top.ppo.lr_actor", "1e6"], "top.ppo.lr_actor must be in (0, 1]"),
+    (["--middle_ppo.lr_critic", "5"], "middle_ppo.lr_critic must be in (0, 1]"),
     (["--warmup_steps", "3000000000"], "warmup_steps must fit in an int32"),
     (["--low.buffer_size", "2000000000"], "GiB available"),
     (["--seeds", "100000"], "GiB available"),
@@ -228,6 +232,30 @@ def test_a_broken_metrics_file_or_a_missing_one_is_one_line(reference, tmp_path,
   os.remove(path)  # the rows before the checkpoints would be lost: refused, not rebuilt
   code, err, _ = _main(capsys, ["--resume", out])
   assert code == 2 and len(err) == 1 and "metrics.csv is missing" in err[0], err
+
+
+@pytest.mark.parametrize("edit,message", [
+    (lambda rows: [], "ours has 0 rows up to env step 800, where its checkpoint needs 8"),
+    (lambda rows: rows[:3] + rows[4:], "has 7 rows up to env step 800, where its checkpoint "
+                                       "needs 8 (one per seed and chunk); the first wrong one: "
+                                       "seed 0 at env step 600 where seed 1 at 400 belongs"),
+    (lambda rows: rows[:5] + rows[4:], "has 9 rows"),
+    (lambda rows: rows[:6], "the first wrong one: seed 0 at env step 800 is missing"),
+])
+def test_resume_refuses_rows_that_do_not_match_the_checkpoint(reference, tmp_path, capsys,
+                                                              edit, message):
+  """A header-only file, a row deleted or doubled, a chunk's rows gone while its checkpoint
+  stays: resuming would lose or double rows, so it is refused, and the file left as it is."""
+  out = _copy(reference, tmp_path)
+  path = os.path.join(out, "metrics.csv")
+  with open(path, "rb") as f:
+    header, *rows = f.read().decode().splitlines()
+  edited = "\n".join([header] + edit(rows)) + "\n"
+  with open(path, "w") as f:
+    f.write(edited)
+  code, err, _ = _main(capsys, ["--resume", out])
+  assert code == 2 and len(err) == 1 and message in err[0], err
+  assert open(path).read() == edited
 
 
 def test_a_full_disk_is_one_line_and_keeps_the_last_checkpoint(reference, tmp_path, monkeypatch,
