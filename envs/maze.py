@@ -67,7 +67,7 @@ class Block:
 
 @dataclasses.dataclass(frozen=True)
 class MazeLayout:
-  """A maze grid (rows top to bottom, SPEC section 1 legend) and its scaling."""
+  """A maze grid (rows top to bottom, docs/spec.md section 1 legend) and its scaling."""
 
   grid: tuple[tuple[Cell, ...], ...]
   scaling: float = 8.0

@@ -1,4 +1,4 @@
-"""The maze tasks: HIRO's grids, targets and success radius (SPEC section 1)."""
+"""The maze tasks: HIRO's grids, targets and success radius (docs/spec.md, section 1)."""
 
 from __future__ import annotations
 

@@ -120,7 +120,7 @@ def make_parser(task: str) -> argparse.ArgumentParser:
                       "tuple's entries joined by commas: --sweep top.alpha=0,0.4,0.7 0,0.2,0.35); "
                       "given twice, the grid of both; named method+field=value")
   p.add_argument("--preset", default="paper", choices=methods.PRESETS,
-                 help="paper: SPEC's numbers; quick: minutes on a CPU")
+                 help="paper: the paper's numbers (docs/spec.md); quick: minutes on a CPU")
   p.add_argument("--seeds", type=int, default=None, help="vmapped seeds (default: preset)")
   p.add_argument("--steps", type=int, default=None,
                  help="vector env steps per seed (default: preset)")
@@ -334,6 +334,8 @@ def _run(plan: plan_lib.Plan, args: argparse.Namespace) -> int:
 
 def _describe(e: BaseException) -> str:
   """One line for an exception: a full disk said as such, else its type and first line."""
+  if isinstance(e, run.Terminated):
+    return "terminated (SIGTERM)"
   if isinstance(e, KeyboardInterrupt):
     return "interrupted"
   chain = [e]

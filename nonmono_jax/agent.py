@@ -19,8 +19,9 @@ in the phases of ``step``:
 The numbers a variant may change (alpha, S_O, the S_E weight, rho, the goal noise, the
 learners' rates: ``hyper.py``) are read from ``hp``, the lane's ``Hyper``: ``step(state, t,
 hp)``; without it, the config's own, as constants. Every gate is a function of the global step
-``t``, which is not batched over seeds, so each stays a real ``lax.cond`` under ``vmap`` (SPEC
-section 6); only per-env data (modes, explore periods) is batched. Metrics are ``metrics.Metric``s that declare their chunk reduction.
+``t``, which is not batched over seeds, so each stays a real ``lax.cond`` under ``vmap``
+(docs/spec.md, section 6); only per-env data (modes, explore periods) is batched. Metrics are
+``metrics.Metric``s that declare their chunk reduction.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The agent's configuration: frozen dataclasses whose defaults are SPEC's numbers (Ant Push, ours).
+"""The agent's configuration: frozen dataclasses whose defaults are the paper's (docs/spec.md).
 
     AgentConfig            the hierarchy, the method's switch, the schedule, the learners
       .top: TopConfig      Top PPO: horizon, alpha, S_O, the starting mode, loss modification
@@ -92,7 +92,7 @@ class TopConfig:
 
 @dataclasses.dataclass(frozen=True)
 class AgentConfig:
-  """The whole agent; the defaults are ours on Ant Push (SPEC sections 2 and 3)."""
+  """The whole agent; the defaults are ours on Ant Push (docs/spec.md, sections 2 and 3)."""
 
   switch: str = "top"  # "none" (HIRO), "top" (ours), "homeostasis" (Ref:*)
   explore_mode: str = "ppo"  # homeostasis only: the explore mode, "ppo" or "random"

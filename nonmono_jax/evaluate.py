@@ -2,7 +2,7 @@
 
 Each episode starts from a reset, the Middle TD3 picks a goal every c steps and the Low TD3
 follows it with the goal transition in between (as in training; the paper's code re-queries
-the Middle every step, SPEC section 5). An episode succeeds if the robot comes within the
+the Middle every step, docs/fidelity.md). An episode succeeds if the robot comes within the
 task's success radius at any step. As in the paper's code, the policies are the *target*
 actors by default (``target_networks``; S_E feeds the Top's loss). Episodes run vmapped inside one ``lax.scan``;
 ``make_episode`` is the episode itself, with a record of every step (also drawn by

@@ -1,7 +1,7 @@
 """Schedule gates: ``lax.cond`` on the unbatched global step, zeros where the branch is skipped.
 
 The predicate comes from the trainer's step counter, which is not batched over seeds, so under
-the seed ``vmap`` the ``cond`` stays a real branch (SPEC section 6; ``tests/test_agent.py``
+the seed ``vmap`` the ``cond`` stays a real branch (docs/spec.md, section 6; ``tests/test_agent.py``
 counts them in the jaxpr).
 """
 

@@ -1,4 +1,4 @@
-"""The formulas that tie the three levels together (SPEC section 2, the paper's Algorithm 1).
+"""The formulas that tie the three levels together (docs/spec.md section 2, the paper's Algorithm 1).
 
 Modes of the Top level, g_expl_mode, in the order of the paper's alpha and S_O tuples:
 TD3 (exploit), PPO (explore) and RANDOM (explore).

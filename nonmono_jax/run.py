@@ -229,7 +229,7 @@ def _train(plan: Plan, names, trainer, ckpts, outputs, clock: Clock, log):
           c.save(step, trainer.lanes(states, v))
       clock.progressed = True
       if _INTERRUPTED.is_set():  # a Ctrl-C that JAX swallowed (raised in a GC callback)
-        raise KeyboardInterrupt
+        raise (_RECEIVED or [KeyboardInterrupt])[0]
       timing.chunk_done(clock, spec.chunk * trainer.num_lanes * num_envs)
       yield from results
 
@@ -337,28 +337,37 @@ def _stop_for_time(plan: Plan, method: str, ckpts: io.Checkpoints, t0: int, stat
           f"continue with --resume {plan.out}")
 
 
-# --- Ctrl-C --------------------------------------------------------------------------------------
+# --- Ctrl-C and SIGTERM -------------------------------------------------------------------------
+
+class Terminated(KeyboardInterrupt):
+  """SIGTERM (a batch scheduler's stop, ``kill``): handled as Ctrl-C is."""
+
 
 _INTERRUPTED = threading.Event()
+_SIGNALS = {signal.SIGINT: KeyboardInterrupt, signal.SIGTERM: Terminated}
+_RECEIVED: list = []  # the exception class of the signal remembered
 
 
 @contextlib.contextmanager
 def remembering_ctrl_c():
-  """SIGINT raises KeyboardInterrupt as usual and is also remembered: one that lands in a
-  callback that swallows exceptions (JAX's garbage-collection hook) stops the run at the end
-  of the chunk instead of being lost."""
+  """SIGINT raises KeyboardInterrupt as usual, SIGTERM ``Terminated`` (one), and each is also
+  remembered: one that lands in a callback that swallows exceptions (JAX's garbage-collection
+  hook) stops the run at the end of the chunk instead of being lost."""
   if threading.current_thread() is not threading.main_thread():
     yield
     return
 
   def handler(signum, frame):
+    _RECEIVED[:] = [_SIGNALS[signum]]
     _INTERRUPTED.set()
-    raise KeyboardInterrupt
+    raise _SIGNALS[signum]
 
   _INTERRUPTED.clear()
-  previous = signal.signal(signal.SIGINT, handler)
+  previous = {sig: signal.signal(sig, handler) for sig in _SIGNALS}
   try:
     yield
   finally:
-    signal.signal(signal.SIGINT, previous)
+    for sig, old in previous.items():
+      signal.signal(sig, old)
     _INTERRUPTED.clear()  # a remembered Ctrl-C belongs to this run, not to the process's next
+    _RECEIVED.clear()

@@ -11,7 +11,7 @@
 The context ``g`` is the Low level's goal or the Middle level's target position; the networks
 take ``concat(s, g[, a])``. The delayed actor step is gated by an argument that the trainer
 derives from its unbatched step counter, so under ``vmap`` over seeds it stays a real
-``lax.cond`` branch (SPEC section 6). In ours the Middle TD3 uses no target smoothing
+``lax.cond`` branch (docs/spec.md, section 6). In ours the Middle TD3 uses no target smoothing
 (``target_smoothing=False``); HIRO keeps it.
 """
 
@@ -31,7 +31,7 @@ from nonmono_jax import learning, networks
 
 @dataclasses.dataclass(frozen=True)
 class TD3Config:
-  """TD3 hyperparameters; defaults are SPEC section 2 (both levels)."""
+  """TD3 hyperparameters; defaults are the paper's (docs/spec.md, section 2; both levels)."""
 
   hidden: Sequence[int] = (300, 300)
   lr_actor: float = 1e-4

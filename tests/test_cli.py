@@ -106,6 +106,31 @@ def test_sigkill_leaves_a_resumable_run(reference, tmp_path):
   assert _bytes(out) == _bytes(reference)  # one line ending, whatever the resume history
 
 
+def test_sigterm_is_one_line_and_leaves_a_resumable_run(reference, tmp_path):
+  """A batch scheduler's SIGTERM ends the run as Ctrl-C does: exit code 1, one line naming the
+  signal and the last good checkpoints, and --resume writes the uninterrupted run's bytes."""
+  out = str(tmp_path / "run")
+  env = {**os.environ, "PYTHONPATH": ROOT, "JAX_COMPILATION_CACHE_DIR": CACHE_DIR}
+  proc = subprocess.Popen([sys.executable, "-m", "experiments.pointmaze", *TINY,
+                           "--method", "ours", "ref-ppo", "--out", out], cwd=ROOT, env=env,
+                          stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+  ckpts = os.path.join(out, "checkpoints", "ours")
+  deadline = time.time() + 300
+  while time.time() < deadline and proc.poll() is None:
+    if os.path.isdir(ckpts) and any(d.isdigit() for d in os.listdir(ckpts)):
+      break
+    time.sleep(0.05)
+  assert proc.poll() is None, "the run ended before it could be stopped"
+  proc.send_signal(signal.SIGTERM)
+  err = proc.communicate(timeout=120)[1]
+  lines = [l for l in err.splitlines() if l.strip() and "Warning" not in l and "warn" not in l]
+  assert proc.returncode == 1, err[-2000:]
+  assert len(lines) == 1 and lines[0].startswith("error: terminated (SIGTERM); last good "
+                                                 "checkpoints: ours step"), lines
+  assert cli.main("PointMaze", ["--resume", out, "--no-progress"]) == 0
+  assert _bytes(out) == _bytes(reference)
+
+
 def test_time_limit_stops_checkpointed_and_resume_completes_the_run(reference, tmp_path,
                                                                    monkeypatch, capsys):
   out = str(tmp_path / "run")

@@ -46,7 +46,7 @@ def test_every_cell_height_by_ray(task_name):
 
 
 def test_hiro_coordinates():
-  """SPEC section 1: robot at the origin, Push block at (0, 8), Fall block at (8, 8)."""
+  """docs/spec.md, section 1: robot at the origin, Push block at (0, 8), Fall block at (8, 8)."""
   push = tasks.TASKS["Push"].layout(8.0)
   assert push.cell_center(*push.robot_cell) == (0.0, 0.0)
   (blk,) = push.blocks()
