@@ -80,10 +80,14 @@ def load(dirs) -> list[dict]:
   A folder is a run folder (with ``metrics.csv``) or holds run folders at any depth (a
   results tree such as ``results/pointpush/<method>/``). Folders that repeat a task and method
   (independent runs of a job array) add their seeds (``_merged``)."""
-  rows, runs = [], defaultdict(int)  # (task, method) -> run folders seen with it
+  rows, runs, paths = [], defaultdict(int), []  # (task, method) -> run folders seen with it
   for d in dirs:
     for path in _metrics_files(d):
       rows.extend(_merged(_read(path), runs))
+      paths.append(path)
+  if not rows:
+    raise ValueError(f"{', '.join(paths)}: no rows yet (no chunk of the run has finished): "
+                     f"nothing to draw")
   return rows
 
 
@@ -128,6 +132,11 @@ def _read(path: str) -> list[dict]:
   for i, values in enumerate(parsed):
     if not _row_ok(header, values):
       raise ValueError(f"{path}: line {i + 2} is malformed: {lines[i + 1][:60]!r}")
+    bad = [c for c in REQUIRED[4:] if values[header.index(c)] != ""
+           and not np.isfinite(float(values[header.index(c)]))]
+    if bad:
+      raise ValueError(f"{path}: line {i + 2}: {bad[0]} is {values[header.index(bad[0])]} "
+                       f"(not a finite number)")
   return [dict(zip(header, values)) for values in parsed]
 
 

@@ -27,7 +27,7 @@ from nonmono_jax import evaluate, io, plan as plan_lib
 def rollout(run_dir: str, method: str | None = None, seed: int = 0, key: int = 0) -> dict:
   """One evaluation episode of a saved run: positions, goals, blocks, success per step."""
   plan = plan_lib.load_run(run_dir)  # its config.json, whatever today's presets say
-  method = method or next(iter(plan.configs))
+  method = next(iter(plan.configs)) if method is None else method
   if method not in plan.configs:
     raise ValueError(f"method {method!r} is not in this run ({', '.join(plan.configs)})")
   config, spec = plan.configs[method], plan.spec
@@ -128,6 +128,8 @@ def main(argv=None) -> int:
   p.add_argument("--out", default=None, help="GIF path (default: DIR/<method>_seed<N>.gif)")
   p.add_argument("--max-frames", type=int, default=150)
   args = p.parse_args(argv)
+  if args.max_frames < 1:
+    p.exit(2, f"{p.prog}: error: --max-frames must be >= 1, got {args.max_frames}\n")
   if args.out is not None:
     if os.path.isdir(args.out) or not args.out.lower().endswith(".gif"):
       p.exit(2, f"{p.prog}: error: cannot write {args.out}: --out must be a .gif file path\n")

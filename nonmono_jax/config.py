@@ -20,6 +20,7 @@ that a run is loaded from its ``config.json``:
 
 from __future__ import annotations
 
+import collections.abc
 import dataclasses
 import typing
 from typing import Any, Mapping
@@ -233,6 +234,7 @@ def override(config, overrides: Mapping[str, Any], prefix: str = ""):
     else:
       value = _tuples(value)
       if not dataclasses.is_dataclass(value):
+        _check_type(prefix + head, value, typing.get_type_hints(type(config))[head])
         validation.check_value(prefix + head, value)
       whole[head] = value
   changes = dict(whole)
@@ -243,6 +245,27 @@ def override(config, overrides: Mapping[str, Any], prefix: str = ""):
                        f"(given {', '.join(prefix + head + '.' + p for p in paths)})")
     changes[head] = override(inner, paths, prefix + head + ".")
   return _replace(config, changes, prefix)
+
+
+_KINDS = {int: "an integer", float: "a number", bool: "true or false", str: "a string"}
+
+
+def _check_type(name: str, value, hint) -> None:
+  """A leaf's value has its field's type (a hand-edited config.json may say "8" for 8):
+  ints are ints (not bools), floats are numbers, sequences hold their element type."""
+  origin = typing.get_origin(hint)
+  if origin in (tuple, list, collections.abc.Sequence):
+    if not isinstance(value, tuple):
+      raise ValueError(f"{name} must be a list, got {value!r}")
+    elem = typing.get_args(hint)[0]
+    for i, v in enumerate(value):
+      _check_type(f"{name}[{i}]", v, elem)
+    return
+  ok = {int: lambda v: isinstance(v, int) and not isinstance(v, bool),
+        float: lambda v: isinstance(v, (int, float)) and not isinstance(v, bool),
+        bool: lambda v: isinstance(v, bool), str: lambda v: isinstance(v, str)}.get(hint)
+  if ok is not None and not ok(value):
+    raise ValueError(f"{name} must be {_KINDS[hint]}, got {value!r}")
 
 
 def _tuples(value):

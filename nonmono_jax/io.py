@@ -19,6 +19,7 @@ import dataclasses
 import io as _stdio
 import json
 import os
+import shutil
 import sys
 import tempfile
 import time
@@ -209,6 +210,8 @@ def good_lines(path: str) -> list[str]:
       text = f.read()
   except UnicodeDecodeError:
     raise MetricsError(f"{path}: not a text file") from None
+  except OSError as e:
+    raise MetricsError(f"{path}: cannot be read ({e.strerror or e})") from None
   lines = text.splitlines()
   if not lines or next(csv.reader([lines[0]]), []) != list(COLUMNS):
     raise MetricsError(f"{path}: the header is not this version's columns (not a metrics "
@@ -244,9 +247,15 @@ def _empty(x):
 class Checkpoints:
   """Orbax checkpoints of one method's train state, keyed by the vector step reached."""
 
-  def __init__(self, directory: str, max_to_keep: int = 2):
+  def __init__(self, directory: str, max_to_keep: int = 2, writer: bool = False):
+    """``writer``: the run that owns the folder (its lock held) removes orbax's temporary
+    folders of saves a kill cut short, which orbax would otherwise count as checkpoints."""
     # Synchronous saves: the next chunk donates (overwrites) the state being saved.
     self.directory = directory
+    if writer and os.path.isdir(directory):
+      for name in os.listdir(directory):
+        if ".orbax-checkpoint-tmp" in name:
+          shutil.rmtree(os.path.join(directory, name), ignore_errors=True)
     self.manager = ocp.CheckpointManager(
         os.path.abspath(directory),
         options=ocp.CheckpointManagerOptions(max_to_keep=max_to_keep, create=True,

@@ -458,7 +458,10 @@ def _saved_config(payload, name: str, spec, overrides: dict, widen: dict):
     today = sized_for_run(today, spec, overrides)
   except ValueError as e:
     today, notes = None, [f"cannot be rebuilt from today's presets ({e}); config.json is used"]
-  config = config_from_dict(saved, today or AgentConfig())
+  try:
+    config = config_from_dict(saved, today or AgentConfig())
+  except ValueError as e:
+    raise ValueError(f"configs.{name}: {e}") from None
   if today is None:
     return config, notes
   notes = []

@@ -132,6 +132,7 @@ def open_folder(plan: Plan, resume: bool = False):
     processes.barrier("run folder open")
     yield plan
     return
+  _check_path(plan.out)
   try:
     os.makedirs(plan.out, exist_ok=resume)
   except FileExistsError:
@@ -148,6 +149,18 @@ def open_folder(plan: Plan, resume: bool = False):
     yield plan
 
 
+def _check_path(out: str) -> None:
+  """A path the system can hold, checked before any of its folders is made."""
+  path = os.path.abspath(out)
+  name_max = os.pathconf("/", "PC_NAME_MAX") if hasattr(os, "pathconf") else 255
+  long = [p for p in path.split(os.sep) if len(p.encode()) > name_max]
+  if long:
+    raise BadFolder(f"--out: the name {long[0][:40]}... is longer than {name_max} bytes")
+  if len(path.encode()) >= 4096:
+    raise BadFolder(f"--out: the path is {len(path.encode())} bytes long, more than the 4095 "
+                    f"a path may have")
+
+
 def _check_folder(plan: Plan, resume: bool) -> None:
   """With the lock held: a new run's folder is still empty; a resumed one is complete."""
   if not resume:
@@ -160,6 +173,9 @@ def _check_folder(plan: Plan, resume: bool) -> None:
     return
   metrics = os.path.join(plan.out, "metrics.csv")
   ckpts = os.path.join(plan.out, "checkpoints")
+  if os.path.lexists(ckpts) and not os.path.isdir(ckpts):
+    raise BadFolder(f"{ckpts} is not a folder (move it away: the run keeps its checkpoints "
+                    f"there)")
   if not os.path.exists(metrics) and os.path.isdir(ckpts) and os.listdir(ckpts):
     raise BadFolder(f"{metrics} is missing while checkpoints exist: the rows before them "
                     f"would be lost (put it back, or start a new run)")
@@ -191,7 +207,8 @@ def run_group(plan: Plan, names, outputs=(), clock: Clock | None = None, log=pri
   spec, names = plan.spec, list(names)
   trainer = plan.trainer(names)
   clock = clock or Clock()
-  ckpts = [io.Checkpoints(os.path.join(plan.out, "checkpoints", n)) for n in names]
+  ckpts = [io.Checkpoints(os.path.join(plan.out, "checkpoints", n), writer=processes.writer())
+           for n in names]
   if len(names) > 1:
     log(f"{', '.join(names)}: one program, {len(names)} variants x {spec.seeds} seeds = "
         f"{trainer.num_lanes} lanes")

@@ -187,9 +187,56 @@ def test_bad_out_paths_are_one_line(tmp_path, capsys):
   a_file.write_text("x")
   for out, message in ((a_file, "exists and is not a folder"),
                        (a_file / "run", "cannot create the folder"),
-                       (tmp_path / ("x" * 300), "cannot create the folder")):
+                       (tmp_path / ("x" * 300), "is longer than 255 bytes"),
+                       (tmp_path / "/".join(["y" * 200] * 21), "more than the 4095")):
     code, err, _ = _main(capsys, ["--out", str(out)])
     assert code == 2 and len(err) == 1 and message in err[0], err
+  assert sorted(os.listdir(tmp_path)) == ["file"]  # no folder made on the way
+
+
+@pytest.mark.parametrize("edit,message", [
+    (lambda c: c["configs"]["ours"]["low"].update(batch_size="8"),
+     "configs.ours: low.batch_size must be an integer, got '8'"),
+    (lambda c: c["configs"]["ours"]["top"].update(alpha=[0, "0.4", 0.7]),
+     "configs.ours: top.alpha[1] must be a number, got '0.4'"),
+    (lambda c: c["configs"]["ours"].update(switch=1), "configs.ours: switch must be a string, got 1"),
+])
+def test_a_wrong_type_in_config_json_is_named(reference, tmp_path, capsys, edit, message):
+  out = _copy(reference, tmp_path)
+  path = os.path.join(out, "config.json")
+  payload = io.read_json(path)
+  edit(payload)
+  io.write_json(path, payload)
+  code, err, _ = _main(capsys, ["--resume", out])
+  assert code == 2 and len(err) == 1 and message in err[0], err
+
+
+def test_odd_files_in_a_run_folder_are_one_line(reference, tmp_path, capsys):
+  """metrics.csv a folder, checkpoints a file: refused in one line, not a traceback."""
+  out = _copy(reference, tmp_path)
+  os.remove(os.path.join(out, "metrics.csv"))
+  os.mkdir(os.path.join(out, "metrics.csv"))
+  code, err, _ = _main(capsys, ["--resume", out])
+  assert code == 2 and len(err) == 1 and "metrics.csv: cannot be read (Is a directory)" in err[0]
+  out = _copy(reference, tmp_path / "b")
+  shutil.rmtree(os.path.join(out, "checkpoints"))
+  open(os.path.join(out, "checkpoints"), "w").close()
+  code, err, _ = _main(capsys, ["--resume", out])
+  assert code == 2 and len(err) == 1 and "checkpoints is not a folder" in err[0], err
+
+
+def test_a_leftover_orbax_temporary_folder_is_not_kept_as_a_checkpoint(reference, tmp_path,
+                                                                        capsys):
+  """A kill during a save leaves orbax's temporary folder; the resumed run removes it, and
+  keeps its two newest checkpoints, as a run that never stopped."""
+  out = _copy(reference, tmp_path)
+  ckpts = os.path.join(out, "checkpoints", "ours")
+  shutil.rmtree(os.path.join(ckpts, "800"))
+  shutil.copytree(os.path.join(ckpts, "600"), os.path.join(ckpts, "800.orbax-checkpoint-tmp-1"))
+  code, err, _ = _main(capsys, ["--resume", out, "--no-progress"])
+  assert code == 0, err
+  assert sorted(os.listdir(ckpts)) == ["600", "800"]
+  assert _bytes(out) == _bytes(reference)
 
 
 @pytest.mark.parametrize("edit,message", [
@@ -212,6 +259,14 @@ def test_a_malformed_config_json_is_one_line(reference, tmp_path, capsys, edit, 
 
 def test_render_to_an_unwritable_path_is_one_line(reference, tmp_path, capsys):
   from experiments import render
+
+  for argv, message in (([reference, "--max-frames", "0"], "--max-frames must be >= 1"),
+                        ([reference, "--max-frames", "-5"], "--max-frames must be >= 1"),
+                        ([reference, "--method", ""], "method '' is not in this run")):
+    with pytest.raises(SystemExit) as e:
+      render.main(argv)
+    err = [l for l in capsys.readouterr().err.splitlines() if l.strip()]
+    assert e.value.code == 2 and len(err) == 1 and message in err[0], err
 
   for out in (tmp_path / "no" / "such" / "a.gif", tmp_path):  # no folder; a folder, not a file
     with pytest.raises(SystemExit) as e:
@@ -276,6 +331,30 @@ def test_a_full_disk_is_one_line_and_keeps_the_last_checkpoint(reference, tmp_pa
   monkeypatch.undo()
   assert cli.main("PointMaze", ["--resume", out, "--no-progress"]) == 0
   assert _bytes(out) == _bytes(reference)
+
+
+def test_plot_says_what_it_cannot_draw(reference, tmp_path, capsys):
+  """A run with no rows yet, and a NaN in a row: one line naming the file (and the line)."""
+  from experiments import plot
+
+  out = _copy(reference, tmp_path)
+  path = os.path.join(out, "metrics.csv")
+  with open(path) as f:
+    header, *rows = f.read().splitlines()
+  with open(path, "w") as f:
+    f.write(header + "\n")
+  with pytest.raises(SystemExit) as e:
+    plot.main([out])
+  err = [l for l in capsys.readouterr().err.splitlines() if l.strip()]
+  assert e.value.code == 2 and len(err) == 1 and "no rows yet" in err[0] and path in err[0]
+  cells = rows[1].split(",")
+  cells[header.split(",").index("eval_return")] = "nan"
+  with open(path, "w") as f:
+    f.write("\n".join([header, rows[0], ",".join(cells)] + rows[2:]) + "\n")
+  with pytest.raises(SystemExit) as e:
+    plot.main([out])
+  err = [l for l in capsys.readouterr().err.splitlines() if l.strip()]
+  assert e.value.code == 2 and f"{path}: line 3: eval_return is nan" in err[0], err
 
 
 def test_plot_skips_a_half_written_last_line_and_refuses_a_broken_file(reference, tmp_path,
