@@ -211,6 +211,7 @@ def _typed(t, text: str):
 # --- the command: checks, the run folder, the run ----------------------------------------------
 
 def main(task: str, argv=None) -> int:
+  io.quiet_storage_leftovers()
   parser = make_parser(task)
   args = parser.parse_args(argv)
   try:

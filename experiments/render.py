@@ -120,6 +120,7 @@ def draw(roll: dict, path: str, max_frames: int = 150, fps: int = 15) -> int:
 
 
 def main(argv=None) -> int:
+  io.quiet_storage_leftovers()
   p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
   p.add_argument("dir", help="a run folder")
   p.add_argument("--method", default=None, help="default: the run's first method")

@@ -18,11 +18,13 @@ import csv
 import dataclasses
 import io as _stdio
 import json
+import logging
 import os
 import shutil
 import sys
 import tempfile
 import time
+import warnings
 from typing import Any, Iterable
 
 import jax
@@ -331,6 +333,47 @@ class Checkpoints:
     self.manager.close()
 
 
+_LEFTOVER_SOURCES = ("orbax", "tensorstore", "asyncio")
+
+
+def quiet_storage_leftovers() -> None:
+  """Drops what orbax's storage layer leaves behind after a failed save or restore: its
+  coroutines and callbacks that fail later, on their own threads or when the interpreter
+  exits ("Exception ignored in: <coroutine ...>", "RuntimeError: Event loop is closed"), which
+  Python prints through ``sys.unraisablehook`` after the command has said what failed in one
+  line, and the error logs of absl and asyncio, through which orbax reports each failed write.
+  Every other unraisable exception is printed as before. The experiment command and
+  ``render`` install it (not with ``NONMONO_TRACEBACK=1``, which shows everything)."""
+  if os.environ.get("NONMONO_TRACEBACK"):
+    return
+  previous = sys.unraisablehook
+  if getattr(previous, "storage_leftovers", False):
+    return
+  # orbax logs each failed write or read through absl ("ERROR:absl:... raised an exception"),
+  # asyncio each of its futures whose failure nobody retrieved: hundreds of lines for one
+  # failure that the command reports in one
+  for name in ("absl", "asyncio"):
+    logging.getLogger(name).setLevel(logging.CRITICAL)
+  # and coroutines of an aborted save that nobody awaits any more, reported at exit
+  warnings.filterwarnings("ignore", message="coroutine .* was never awaited",
+                          category=RuntimeWarning)
+
+  def hook(unraisable):
+    frames = []
+    tb = unraisable.exc_traceback
+    while tb is not None:
+      frames.append(tb.tb_frame.f_code.co_filename)
+      tb = tb.tb_next
+    where = " ".join(frames) + " " + repr(unraisable.object)
+    if any(source in where for source in _LEFTOVER_SOURCES) or \
+        "Event loop is closed" in str(unraisable.exc_value):
+      return
+    previous(unraisable)
+
+  hook.storage_leftovers = True
+  sys.unraisablehook = hook
+
+
 @contextlib.contextmanager
 def _stderr_dropped_if(failed):
   """Holds back what the block writes to file descriptor 2 and drops it if ``failed()``: a
@@ -345,8 +388,6 @@ def _stderr_dropped_if(failed):
     try:
       yield
     finally:
-      if failed():
-        time.sleep(0.5)  # the failed restore's late callbacks land here
       sys.stderr = python_stderr
       os.dup2(saved, 2)
       os.close(saved)

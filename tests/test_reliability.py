@@ -313,6 +313,26 @@ def test_resume_refuses_rows_that_do_not_match_the_checkpoint(reference, tmp_pat
   assert open(path).read() == edited
 
 
+def test_another_runs_checkpoint_is_one_line_to_the_end_of_the_process(reference, tmp_path):
+  """orbax's failed reads leave coroutines and log records that Python printed after the
+  command's line, some when the process exited: run in a process of its own, the resume and
+  the render of a folder holding another run's checkpoint say one line, nothing after it."""
+  other = str(tmp_path / "other")
+  argv = TINY_RUN + ["--method", "ours", "--low.hidden", "32", "32", "--steps", "400"]
+  assert cli.main("PointMaze", argv + ["--out", other]) == 0
+  out = _copy(reference, tmp_path)
+  ckpts = os.path.join(out, "checkpoints", "ours")
+  shutil.rmtree(ckpts)
+  shutil.copytree(os.path.join(other, "checkpoints", "ours"), ckpts)
+  env = {**os.environ, "PYTHONPATH": ROOT, "JAX_COMPILATION_CACHE_DIR": CACHE_DIR}
+  for command in (["experiments.pointmaze", "--resume", out], ["experiments.render", out]):
+    done = subprocess.run([sys.executable, "-m", *command], cwd=ROOT, env=env,
+                          capture_output=True, text=True, timeout=300)
+    lines = [l for l in done.stderr.splitlines() if l.strip()]
+    assert done.returncode == 2 and len(lines) == 1, done.stderr[-3000:]
+    assert "no checkpoint in" in lines[0] and "restores" in lines[0]
+
+
 def test_a_full_disk_is_one_line_and_keeps_the_last_checkpoint(reference, tmp_path, monkeypatch,
                                                                 capsys):
   append, calls = io.MetricsFile.append, []
