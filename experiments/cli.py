@@ -210,8 +210,12 @@ def _typed(t, text: str):
 
 # --- the command: checks, the run folder, the run ----------------------------------------------
 
+CACHE_DIR = os.path.join(os.path.expanduser("~"), ".cache", "nonmono-jax", "xla")
+
+
 def main(task: str, argv=None) -> int:
   io.quiet_storage_leftovers()
+  _cache_compiled_programs()
   parser = make_parser(task)
   args = parser.parse_args(argv)
   try:
@@ -232,6 +236,14 @@ def main(task: str, argv=None) -> int:
   finally:
     processes.leave(code)
   return code
+
+
+def _cache_compiled_programs() -> None:
+  """JAX's persistent compilation cache, on unless the user set one (``JAX_COMPILATION_CACHE_DIR``):
+  a resumed run, and the memory check's compile of a large run, reuse the compiled chunk."""
+  import jax
+  if not jax.config.jax_compilation_cache_dir:
+    jax.config.update("jax_compilation_cache_dir", CACHE_DIR)
 
 
 def _use_cpu_devices(args: argparse.Namespace) -> None:

@@ -270,9 +270,16 @@ def state_bytes(plan: Plan, names) -> int:
              for x in jax.tree.leaves(shapes))
 
 
+EXACT_FROM = 0.25  # a run estimated above this share of the memory is compiled to count it
+MARGIN = 0.9  # the share of the available memory a run may take (the rest: Python, buffers)
+
+
 def check_memory(plan: Plan) -> None:
-  """Refuses a run whose train state plus its evaluation's per-step records exceed the memory
-  available (groups of variants run one after another: each is checked on its own)."""
+  """Refuses a run that cannot fit in the memory available (groups of variants run one after
+  another: each is checked on its own). First an estimate (the train state and the
+  evaluation's per-step records); a run estimated above ``EXACT_FROM`` of the memory is then
+  compiled, and XLA's count of the chunk program (its state, temporaries and evaluation, per
+  device, times the devices sharing this memory) must fit in ``MARGIN`` of it."""
   have = available_bytes()
   spec = plan.spec
   for group in plan.groups():
@@ -280,6 +287,8 @@ def check_memory(plan: Plan) -> None:
     state = state_bytes(plan, group)
     evals = (lanes * config.num_envs * config.eval_episodes * spec.episode_length
              * EVAL_RECORD_BYTES)
+    if have is not None and EXACT_FROM * have < state + evals <= have:
+      _check_program(plan, group, have)
     if have is not None and state + evals > have:
       raise ValueError(f"{' + '.join(group)} for {spec.seeds} seeds needs "
                        f"{(state + evals) / 2**30:.1f} "
@@ -287,6 +296,18 @@ def check_memory(plan: Plan) -> None:
                        f"evaluation episodes {evals / 2**30:.1f}), more than the "
                        f"{have / 2**30:.1f} GiB available: use fewer --seeds, smaller "
                        f"buffers (--low.buffer_size, --middle.buffer_size) or shorter episodes")
+
+
+def _check_program(plan: Plan, group, have: int) -> None:
+  """XLA's count of the compiled chunk against ``MARGIN`` of the memory available."""
+  devices = jax.local_device_count() if jax.default_backend() == "cpu" else 1
+  need = plan.trainer(group).program_bytes()["total"] * devices
+  if need > MARGIN * have:
+    raise ValueError(f"{' + '.join(group)} for {plan.spec.seeds} seeds needs {need / 2**30:.1f} "
+                     f"GiB (XLA's count of the compiled chunk: train state, temporaries and "
+                     f"evaluation), more than {MARGIN:.0%} of the {have / 2**30:.1f} GiB "
+                     f"available: use fewer --seeds, smaller buffers (--low.buffer_size, "
+                     f"--middle.buffer_size) or shorter episodes")
 
 
 def available_bytes() -> int | None:

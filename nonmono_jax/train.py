@@ -64,6 +64,9 @@ class Trainer:
   chunk: Callable
   evaluate: Callable
   variants: int = 1  # lanes = variants x num_seeds, variant-major
+  # XLA's memory count of one device's compiled chunk: {"argument", "output", "temp",
+  # "alias", "total"} bytes (compiles it; benchmarks.common.program_bytes)
+  program_bytes: Callable[[], dict] | None = None
 
   @property
   def num_lanes(self) -> int:
@@ -160,12 +163,21 @@ def _make(env, config, per_lane, num_seeds, chunk_steps, devices, compiler_optio
   if per_lane is None:
     chunk = jit(shard(lambda st, t0: local_chunk(st, t0, None), (P("seeds"), P())),
                 donate_argnums=0, out_shardings=seeds)
+    lower = lambda states: chunk.lower(states, 0)
   else:
     lanes_chunk = jit(shard(local_chunk, (P("seeds"), P(), P("seeds"))), donate_argnums=0,
                       out_shardings=seeds)
     hp = jax.device_put(per_lane, seeds)
     chunk = lambda states, t0: lanes_chunk(states, t0, hp)
+    lower = lambda states: lanes_chunk.lower(states, 0, hp)
+
+  def program_bytes():
+    m = lower(jax.eval_shape(init, jax.random.PRNGKey(0))).compile().memory_analysis()
+    out = {k: int(getattr(m, f"{k}_size_in_bytes")) for k in ("argument", "output", "temp",
+                                                              "alias")}
+    return {**out, "total": out["argument"] + out["output"] + out["temp"] - out["alias"]}
   return Trainer(
       agent=agent, num_seeds=num_seeds, chunk_steps=chunk_steps, mesh=mesh,
       init=init, chunk=chunk,
-      evaluate=jit(shard(local_evaluate, (P("seeds"), P()))), variants=variants)
+      evaluate=jit(shard(local_evaluate, (P("seeds"), P()))), variants=variants,
+      program_bytes=program_bytes)
