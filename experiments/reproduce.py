@@ -37,6 +37,7 @@ class Comparison:
   """The rows of one method compared so far."""
 
   method: str
+  columns: tuple = io.COLUMNS  # the folder's metrics.csv's (an earlier version's: fewer)
   equal: int = 0
   missing: int = 0  # rows the folder does not have (it stopped earlier)
   differ: list = dataclasses.field(default_factory=list)  # (env_step, seed, [(col, a, b)])
@@ -49,10 +50,11 @@ class Comparison:
       line = committed.get(key)
       if line is None:
         self.missing += 1
-      elif line == format_row(row):
+      elif line == format_row(row, self.columns):
         self.equal += 1
       else:
-        self.differ.append((key[1], key[2], changed_fields(line, format_row(row))))
+        self.differ.append((key[1], key[2], changed_fields(line, format_row(row, self.columns),
+                                                           self.columns)))
 
   def report(self) -> str:
     compared = self.equal + len(self.differ)
@@ -67,17 +69,18 @@ class Comparison:
             f"{shown}{'; ...' if len(fields) > 3 else ''})")
 
 
-def format_row(row: dict) -> str:
-  """A row as ``metrics.csv`` holds it (``io.MetricsFile.append``), without the newline."""
+def format_row(row: dict, columns=io.COLUMNS) -> str:
+  """A row as ``metrics.csv`` holds it (``io.MetricsFile.append``), without the newline; a
+  file of an earlier version has fewer ``columns``."""
   buffer = text_io.StringIO()
-  csv.DictWriter(buffer, io.COLUMNS, lineterminator="\n").writerow(row)
+  csv.DictWriter(buffer, columns, lineterminator="\n", extrasaction="ignore").writerow(row)
   return buffer.getvalue()[:-1]
 
 
-def changed_fields(line_a: str, line_b: str) -> list:
+def changed_fields(line_a: str, line_b: str, columns=io.COLUMNS) -> list:
   """[(column, value in a, value in b)] where two ``metrics.csv`` lines differ."""
   a, b = next(csv.reader([line_a])), next(csv.reader([line_b]))
-  return [(c, x, y) for c, x, y in zip(io.COLUMNS, a, b) if x != y]
+  return [(c, x, y) for c, x, y in zip(columns, a, b) if x != y]
 
 
 def committed_rows(folder: str) -> dict:
@@ -114,7 +117,8 @@ def reproduce(folder: str, steps: int | None, wanted: list[str] | None, log=prin
     raise ValueError(f"{folder} has no method {', '.join(unknown)} (it has "
                      f"{', '.join(plan.configs)})")
   committed = committed_rows(folder)
-  results = {m: Comparison(m) for m in wanted}
+  columns = io.file_columns(f"{folder}/metrics.csv")
+  results = {m: Comparison(m, columns) for m in wanted}
   with tempfile.TemporaryDirectory() as tmp:
     plan = dataclasses.replace(plan, out=tmp, trainers={}, warnings=[])
     for group in plan.groups():

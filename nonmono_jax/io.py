@@ -147,17 +147,20 @@ class MetricsError(ValueError):
 
 class MetricsFile:
   """``metrics.csv``: rows appended and flushed to disk after every chunk; LF line endings
-  always, so that a resumed run's file is byte for byte the one of a run that never stopped."""
+  always, so that a resumed run's file is byte for byte the one of a run that never stopped.
+  A file written by an earlier version of the code, whose header lacks columns added since
+  (``file_columns``), keeps its header: its rows are written with its columns."""
 
   def __init__(self, path: str):
     self.path = path
     if not os.path.exists(path):
       with open(path, "w", newline="") as f:
         csv.writer(f, lineterminator="\n").writerow(COLUMNS)
+    self.columns = file_columns(path)
 
   def append(self, rows: Iterable[dict]) -> None:
     with open(self.path, "a", newline="") as f:
-      w = csv.DictWriter(f, COLUMNS, lineterminator="\n")
+      w = csv.DictWriter(f, self.columns, lineterminator="\n", extrasaction="ignore")
       for row in rows:
         w.writerow(row)
       f.flush()
@@ -170,9 +173,9 @@ class MetricsFile:
   def truncate(self, method: str, env_step: int) -> int:
     """Drop ``method``'s rows past ``env_step`` and a half-written last line; returns rows
     dropped. Raises MetricsError for a wrong header or a malformed line before the last."""
-    keep, dropped = [",".join(COLUMNS)], 0
+    keep, dropped = [",".join(self.columns)], 0
     for line in good_lines(self.path):
-      row = dict(zip(COLUMNS, next(csv.reader([line]))))
+      row = dict(zip(self.columns, next(csv.reader([line]))))
       if row["method"] == method and int(row["env_step"]) > env_step:
         dropped += 1
         continue
@@ -187,9 +190,9 @@ def check_rows(path: str, method: str, env_step: int, seeds: int, chunk_env_step
   rows lost or doubled would not come back)."""
   want = [(k * chunk_env_steps, seed) for k in range(1, env_step // chunk_env_steps + 1)
           for seed in range(seeds)]
-  have = []
+  have, columns = [], file_columns(path)
   for line in good_lines(path):
-    row = dict(zip(COLUMNS, next(csv.reader([line]))))
+    row = dict(zip(columns, next(csv.reader([line]))))
     if row["method"] == method and int(row["env_step"]) <= env_step:
       have.append((int(row["env_step"]), int(row["seed"])))
   if have == want:
@@ -204,32 +207,48 @@ def check_rows(path: str, method: str, env_step: int, seeds: int, chunk_env_step
                      f"wrong one: {what}. Put back the file the run wrote, or start a new run")
 
 
-def good_lines(path: str) -> list[str]:
-  """The data lines of a ``metrics.csv``, without a half-written last line (one a kill cut
-  short: no final newline, or the wrong number of fields); raises MetricsError otherwise."""
+KEY_COLUMNS = COLUMNS[:4]  # task, method, seed, env_step: what every version has, first
+
+
+def _text(path: str) -> str:
   try:
     with open(path, newline="") as f:
-      text = f.read()
+      return f.read()
   except UnicodeDecodeError:
     raise MetricsError(f"{path}: not a text file") from None
   except OSError as e:
     raise MetricsError(f"{path}: cannot be read ({e.strerror or e})") from None
-  lines = text.splitlines()
-  if not lines or next(csv.reader([lines[0]]), []) != list(COLUMNS):
-    raise MetricsError(f"{path}: the header is not this version's columns (not a metrics "
-                       f"file of this code)")
-  lines = lines[1:]
-  if lines and (not text.endswith("\n") or not _well_formed(lines[-1])):
+
+
+def file_columns(path: str) -> tuple[str, ...]:
+  """The columns of a ``metrics.csv``: today's (``COLUMNS``), or those of an earlier version
+  of the code, which are today's with some left out (columns are added, never renamed or
+  moved); raises MetricsError for any other header."""
+  lines = _text(path).splitlines()
+  header = tuple(next(csv.reader(lines[:1]), []))
+  known = [c for c in COLUMNS if c in header]
+  if header[:len(KEY_COLUMNS)] != KEY_COLUMNS or list(header) != known:
+    raise MetricsError(f"{path}: the header is not a metrics file's (not {', '.join(KEY_COLUMNS)}"
+                       f", ... as this code or an earlier version writes it)")
+  return header
+
+
+def good_lines(path: str) -> list[str]:
+  """The data lines of a ``metrics.csv``, without a half-written last line (one a kill cut
+  short: no final newline, or the wrong number of fields); raises MetricsError otherwise."""
+  text, n = _text(path), len(file_columns(path))
+  lines = text.splitlines()[1:]
+  if lines and (not text.endswith("\n") or not _well_formed(lines[-1], n)):
     lines = lines[:-1]
   for i, line in enumerate(lines):
-    if not _well_formed(line):
+    if not _well_formed(line, n):
       raise MetricsError(f"{path}: line {i + 2} is malformed: {line[:60]!r}")
   return lines
 
 
-def _well_formed(line: str) -> bool:
+def _well_formed(line: str, n: int) -> bool:
   values = next(csv.reader([line]), [])
-  if len(values) != len(COLUMNS):
+  if len(values) != n:
     return False
   try:
     return int(values[3]) >= 0  # env_step

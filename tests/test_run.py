@@ -2,6 +2,7 @@
 that get every metric, and an old run folder (made before a preset default changed) that still
 resumes, plots and renders."""
 
+import csv
 import json
 import os
 
@@ -176,6 +177,16 @@ def test_an_old_run_folder_resumes_plots_and_renders_with_a_warning(old_run, pre
   payload["overrides"] = {"top": {"starting_steps": 100}, **{
       k: v for k, v in payload["overrides"].items() if k != "top.starting_steps"}}
   del payload["configs"]["ours"]["eval_target_networks"]
+  # ... and a metrics.csv without the columns the code added since (Middle decisions, counts
+  # after the starting mode): its rows keep its columns
+  old_columns = [c for c in io.COLUMNS if not c.startswith(("decisions_", "cum_decisions_",
+                                                             "cum_steps_after_start_"))]
+  metrics = os.path.join(out, "metrics.csv")
+  old_rows = io.MetricsFile(metrics).read()
+  with open(metrics, "w", newline="") as f:
+    w = csv.DictWriter(f, old_columns, lineterminator="\n", extrasaction="ignore")
+    w.writeheader()
+    w.writerows(old_rows)
   assert payload["host"] == plan_lib.host()  # the machine type its rows reproduce on
   payload["host"]["cpu"] = "another CPU"
   io.write_json(path, payload)
@@ -191,6 +202,7 @@ def test_an_old_run_folder_resumes_plots_and_renders_with_a_warning(old_run, pre
   assert "warning:" in got.err and "top.s_o_start 0.9 (today 0.8)" in got.err
   rows = io.MetricsFile(os.path.join(out, "metrics.csv")).read()
   assert [int(r["env_step"]) for r in rows] == [200, 200, 400, 400, 600, 600, 800, 800]
+  assert list(rows[-1]) == old_columns  # the resumed rows in the file's own columns
   with open(os.path.join(out, "metrics.jsonl")) as f:
     assert [json.loads(line)["env_step"] for line in f] == [200, 200, 400, 400, 600, 600,
                                                              800, 800]
