@@ -1,6 +1,6 @@
 """The study's budget rule, applied to calibration runs: ``python -m experiments.calibrate DIR``.
 
-The rule (README, "The study", step 1, fixed before the comparison): the budget B of a task is
+The rule (docs/results.md, "The study", step 1, fixed before the comparison): the budget B of a task is
 the smallest of 100K, 200K, 500K and 1M env steps at which ours or HIRO reaches a mean S_E over
 its seeds, averaged over the five evaluations ending at that step, at least 0.2 above the
 random policy's success rate; the comparison runs at min(B, 500K); if neither method reaches
@@ -27,7 +27,7 @@ NOT_LEARNED_BUDGET = 200_000  # where the comparison runs on a task nothing lear
 MARGIN = 0.2
 WINDOW = 5  # evaluations averaged, ending at the candidate
 METHODS = ("ours", "hiro")
-# The random policy's success rate, 256 episodes of 100 steps (README, "The study"; measured
+# The random policy's success rate, 256 episodes of 100 steps (docs/results.md, "The study"; measured
 # with `python -m experiments.random_baseline --task T --episodes 256 --episode-length 100`).
 FLOORS = {"PointMaze": 0.0, "PointPush": 0.004, "PointFall": 0.0}
 

@@ -173,7 +173,7 @@ def widen(config: AgentConfig, spec: RunSpec, envs_per_seed: int,
 
   The paper runs one env per seed. To fill a GPU, a seed can run E envs, but ``num_envs``
   alone keeps every schedule in vector steps and one gradient step per vector step
-  (README, "Several envs per seed"). This keeps the paper's numbers per env step instead:
+  (docs/training.md, "Several envs per seed"). This keeps the paper's numbers per env step instead:
 
   - schedules in env steps become vector steps / E (rounded up): warm-up, the starting mode,
     evaluation, the PPO std decay, the run's length and its checkpoints;

@@ -14,6 +14,8 @@ import pytest
 
 from tests_support import CACHE_DIR, ROOT, TINY_RUN
 
+pytestmark = pytest.mark.slow  # each test starts 2-4 processes that compile
+
 ENV = {**os.environ, "PYTHONPATH": ROOT, "JAX_COMPILATION_CACHE_DIR": CACHE_DIR}
 RUN = [sys.executable, "-m", "experiments.pointmaze"]
 
