@@ -2,18 +2,23 @@
 
 import os
 import shutil
+import subprocess
+import sys
 
 import pytest
 
-from experiments import cli, reproduce
-from tests_support import TINY_RUN
+from experiments import reproduce
+from tests_support import CACHE_DIR, ROOT, TINY_RUN
 
 
 @pytest.fixture(scope="module")
 def folder(tmp_path_factory):
-  """A tiny HIRO run, made in this process (so on this machine type)."""
+  """A tiny HIRO run, made by a process of its own (on this machine type): reproducing it
+  here is a new process's compile and run, as a user's would be."""
   out = str(tmp_path_factory.mktemp("made") / "run")
-  assert cli.main("PointMaze", TINY_RUN + ["--method", "hiro", "--out", out]) == 0
+  env = {**os.environ, "PYTHONPATH": ROOT, "JAX_COMPILATION_CACHE_DIR": CACHE_DIR}
+  subprocess.run([sys.executable, "-m", "experiments.pointmaze", *TINY_RUN, "--method", "hiro",
+                  "--out", out], cwd=ROOT, env=env, check=True, capture_output=True)
   return out
 
 
