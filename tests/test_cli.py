@@ -84,6 +84,7 @@ def test_resume_after_a_stop_gives_the_same_metrics(reference, tmp_path):
   assert _bytes(out) == _bytes(reference)  # one line ending, whatever the resume history
 
 
+@pytest.mark.slow  # starts processes
 def test_sigkill_leaves_a_resumable_run(reference, tmp_path):
   out = str(tmp_path / "run")
   env = {**os.environ, "PYTHONPATH": ROOT, "JAX_COMPILATION_CACHE_DIR": CACHE_DIR}
@@ -106,6 +107,7 @@ def test_sigkill_leaves_a_resumable_run(reference, tmp_path):
   assert _bytes(out) == _bytes(reference)  # one line ending, whatever the resume history
 
 
+@pytest.mark.slow  # starts processes
 def test_sigterm_is_one_line_and_leaves_a_resumable_run(reference, tmp_path):
   """A batch scheduler's SIGTERM ends the run as Ctrl-C does: exit code 1, one line naming the
   signal and the last good checkpoints, and --resume writes the uninterrupted run's bytes."""

@@ -8,6 +8,8 @@ import pytest
 from nbclient import NotebookClient
 
 from tests_support import CACHE_DIR, ROOT, TINY_OVERRIDES, TINY_SIZE
+
+pytestmark = pytest.mark.slow  # each notebook runs in a kernel of its own
 NOTEBOOKS = os.path.join(ROOT, "notebooks")
 
 

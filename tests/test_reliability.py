@@ -50,6 +50,7 @@ def _copy(reference, tmp_path):
 
 # --- 1. one writer ------------------------------------------------------------------------------
 
+@pytest.mark.slow  # starts processes
 def test_a_second_writer_exits_2_naming_the_holder_and_a_dead_holder_leaves_no_lock(
     reference, tmp_path, capsys):
   out = str(tmp_path / "run")
@@ -332,6 +333,7 @@ def test_resume_refuses_rows_that_do_not_match_the_checkpoint(reference, tmp_pat
   assert open(path).read() == edited
 
 
+@pytest.mark.slow  # starts processes
 def test_another_runs_checkpoint_is_one_line_to_the_end_of_the_process(reference, tmp_path):
   """orbax's failed reads leave coroutines and log records that Python printed after the
   command's line, some when the process exited: run in a process of its own, the resume and
