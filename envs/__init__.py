@@ -39,6 +39,12 @@ def _split(name: str) -> tuple[str, str]:
   raise ValueError(f"unknown env {name!r}; valid names: {', '.join(NAMES)}")
 
 
+def has_physics(name: str) -> bool:
+  """Whether the env of ``name`` has a physics choice (``AntConfig.physics``: the ant on MuJoCo
+  C or MJX); the point robot's physics is its own pure JAX."""
+  return "physics" in valid_overrides(name)
+
+
 def make(name: str, **overrides):
   """Build an env by name (``envs.NAMES``) with config overrides (``valid_overrides``)."""
   robot, task = _split(name)
@@ -50,5 +56,5 @@ def make(name: str, **overrides):
   return env_cls(tasks.TASKS[task], config_cls(**overrides))
 
 
-__all__ = ["make", "NAMES", "valid_overrides", "AntMazeEnv", "PointMazeEnv", "AntConfig",
+__all__ = ["make", "NAMES", "valid_overrides", "has_physics", "AntMazeEnv", "PointMazeEnv", "AntConfig",
            "PointConfig", "EnvConfig", "MazeEnv", "MazeState", "tasks"]

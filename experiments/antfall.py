@@ -9,4 +9,4 @@ import sys
 from experiments import cli
 
 if __name__ == "__main__":
-  sys.exit(cli.main("AntFall"))
+  sys.exit(cli.main(cli.task_of_module(__spec__.name)))

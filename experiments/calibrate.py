@@ -20,6 +20,7 @@ import sys
 import numpy as np
 
 from experiments import plot
+from nonmono_jax import methods
 
 CANDIDATES = (100_000, 200_000, 500_000, 1_000_000)
 CAP = 500_000  # the comparison's budget is at most this (compute)
@@ -27,9 +28,6 @@ NOT_LEARNED_BUDGET = 200_000  # where the comparison runs on a task nothing lear
 MARGIN = 0.2
 WINDOW = 5  # evaluations averaged, ending at the candidate
 METHODS = ("ours", "hiro")
-# The random policy's success rate, 256 episodes of 100 steps (docs/results.md, "The study"; measured
-# with `python -m experiments.random_baseline --task T --episodes 256 --episode-length 100`).
-FLOORS = {"PointMaze": 0.0, "PointPush": 0.004, "PointFall": 0.0}
 
 
 def window_mean(steps, values, at: int, window: int = WINDOW) -> float | None:
@@ -58,7 +56,7 @@ def decide(means: dict[str, dict[int, float | None]], floor: float) -> tuple[str
 
 def calibrate(rows, task: str) -> tuple[str, list[str]]:
   """The decision for ``task`` and a markdown table of the window means behind it."""
-  floor = FLOORS.get(task, 0.0)
+  floor = methods.TASKS[task].random_success
   means, lines = {}, []
   header = "| method | seeds | last step | " + " | ".join(f"{c // 1000}K" for c in CANDIDATES)
   lines += [header + " |", "|---" * (3 + len(CANDIDATES)) + "|"]

@@ -41,9 +41,11 @@ from experiments import cores
 
 cores.share(sys.argv[1:])  # before JAX loads: this process's share of a machine it shares
 
+import envs  # noqa: E402
 from envs import ant_maze  # noqa: E402
 from nonmono_jax import config as config_lib  # noqa: E402
 from nonmono_jax import io, methods, plan as plan_lib, processes, run, runlock, sinks  # noqa: E402
+from nonmono_jax.methods import task_of_module  # noqa: E402,F401 - for experiments/<task>.py
 from nonmono_jax.plan import Plan  # noqa: E402,F401 - for callers of plan_from_args
 from nonmono_jax.run import Clock, NonFinite, TimeLimit  # noqa: E402,F401 - the run's, in tests
 
@@ -146,7 +148,7 @@ def make_parser(task: str) -> argparse.ArgumentParser:
                  help="on the CPU, split the lanes over N devices, e.g. one per core (about "
                       "1.6-2.5x faster at 16 seeds on 2 cores; --seeds a multiple of N; not "
                       "bit-identical to 1 device); --resume uses the run's count")
-  if task.startswith("Ant"):
+  if envs.has_physics(task):
     p.add_argument("--physics", default="auto", choices=ant_maze.PHYSICS,
                    help="the ant's physics: c, MuJoCo's C engine called from inside the jitted "
                         "step (10-25x MJX on a CPU); mjx, the MJX pipeline (for accelerators); "

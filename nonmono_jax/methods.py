@@ -55,13 +55,19 @@ METHODS = tuple(METHOD_OVERRIDES)
 
 @dataclasses.dataclass(frozen=True)
 class TaskPreset:
-  """What a task fixes: its env, length of training and the paper's per-task numbers."""
+  """What a task fixes: its env, length of training and the paper's per-task numbers. The one
+  registry of tasks: the experiment modules (``experiments/<task>.py``), the calibration and
+  the presets read it; the env itself is ``envs.make(env)``."""
 
   env: str
+  robot: str  # "ant" or "point": which PRESET_TABLE rows apply
   total_steps: int
   episode_length: int
   agent: dict  # dotted AgentConfig overrides: the robot's scale, alpha, S_O
   rho: dict  # method -> homeostasis target rate (the Ref methods)
+  # a random policy's success rate (256 episodes; `python -m experiments.random_baseline`):
+  # the calibration's floor (docs/results.md, "The study")
+  random_success: float = 0.0
 
 
 # The Ant presets follow the paper's code where it made a choice this project first made
@@ -88,14 +94,24 @@ _PUSH_RHO = {"ref-ppo": 0.01, "ref-uniform": 0.0001}
 _FALL_RHO = {"ref-ppo": 0.001, "ref-uniform": 0.001}
 
 TASKS = {
-    "AntPush": TaskPreset("AntPush", 3_150_000, 1000, {**_ANT, **_PUSH}, _PUSH_RHO),
-    "AntFall": TaskPreset("AntFall", 6_000_000, 1000, {**_ANT, **_FALL}, _FALL_RHO),
+    "AntPush": TaskPreset("AntPush", "ant", 3_150_000, 1000, {**_ANT, **_PUSH}, _PUSH_RHO),
+    "AntFall": TaskPreset("AntFall", "ant", 6_000_000, 1000, {**_ANT, **_FALL}, _FALL_RHO),
     # Not in the paper: HIRO's sanity check, with Push's numbers.
-    "AntMaze": TaskPreset("AntMaze", 3_150_000, 1000, {**_ANT, **_PUSH}, _PUSH_RHO),
-    "PointPush": TaskPreset("PointPush", 100_000, 100, {**_POINT, **_PUSH}, _PUSH_RHO),
-    "PointFall": TaskPreset("PointFall", 100_000, 100, {**_POINT, **_FALL}, _FALL_RHO),
-    "PointMaze": TaskPreset("PointMaze", 40_000, 100, {**_POINT, **_PUSH}, _PUSH_RHO),
+    "AntMaze": TaskPreset("AntMaze", "ant", 3_150_000, 1000, {**_ANT, **_PUSH}, _PUSH_RHO),
+    "PointPush": TaskPreset("PointPush", "point", 100_000, 100, {**_POINT, **_PUSH}, _PUSH_RHO,
+                            random_success=0.004),
+    "PointFall": TaskPreset("PointFall", "point", 100_000, 100, {**_POINT, **_FALL}, _FALL_RHO),
+    "PointMaze": TaskPreset("PointMaze", "point", 40_000, 100, {**_POINT, **_PUSH}, _PUSH_RHO),
 }
+
+
+def task_of_module(module: str) -> str:
+  """The task an experiment module runs: ``experiments.antpush`` -> ``AntPush``."""
+  name = module.rsplit(".", 1)[-1]
+  found = [t for t in TASKS if t.lower() == name]
+  if not found:
+    raise ValueError(f"no task named {name!r}; tasks: {', '.join(TASKS)}")
+  return found[0]
 
 
 def preset_overrides(method: str, task: str) -> dict:
@@ -160,7 +176,7 @@ def make_preset(preset: str, method: str, task: str) -> tuple[AgentConfig, RunSp
   with replay buffers sized for the run."""
   if preset not in PRESETS:
     raise ValueError(f"preset must be one of {', '.join(PRESETS)}; got {preset!r}")
-  agent, run = PRESET_TABLE[preset, "point" if task.startswith("Point") else "ant"]
+  agent, run = PRESET_TABLE[preset, TASKS[task].robot]
   config = make_config(method, task, agent)
   t = TASKS[task]
   spec = RunSpec(**{"steps": t.total_steps, "episode_length": t.episode_length, **run})

@@ -135,7 +135,7 @@ def new_run(task: str, method_names, preset: str = "paper", out: str | None = No
 def run_physics(task: str, physics: str | None) -> str | None:
   """The physics a new run of ``task`` records: ``c`` or ``mjx`` for the ant (``auto`` and
   None: ``envs.ant_maze.default_physics``), None for the point robot, which has no choice."""
-  if not task.startswith("Ant"):
+  if not envs.has_physics(task):
     if physics not in (None, "auto"):
       raise ValueError(f"--physics: {task} has no physics choice (the point robot is pure JAX)")
     return None
@@ -454,7 +454,7 @@ def saved_physics(payload) -> str | None:
   """The physics a saved run trained with: its ``physics`` entry; for an ant run from before
   the choice, ``mjx`` (what it ran on)."""
   task, physics = payload["task"], payload.get("physics")
-  if not task.startswith("Ant"):
+  if not envs.has_physics(task):
     if physics is not None:
       raise ValueError(f"physics must be null for {task}, got {physics!r}")
     return None

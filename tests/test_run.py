@@ -252,3 +252,21 @@ def test_the_ant_physics_is_recorded_and_an_old_ant_run_keeps_mjx(tmp_path):
   assert plan_lib.new_run("PointMaze", ["hiro"]).physics is None
   with pytest.raises(ValueError, match="--physics must be one of auto, c, mjx"):
     plan_lib.new_run("AntFall", ["hiro"], physics="C")
+
+
+def test_the_task_registry_names_each_task_once():
+  """methods.TASKS is the one list of tasks: each has its env, its presets, its experiment
+  module (which reads its task from the registry) and its calibration floor."""
+  import importlib
+
+  import envs
+  assert set(methods.TASKS) == set(envs.NAMES)
+  for task, preset in methods.TASKS.items():
+    assert preset.env == task and preset.robot == ("ant" if envs.has_physics(task) else "point")
+    module = importlib.import_module(f"experiments.{task.lower()}")
+    assert methods.task_of_module(module.__name__) == task
+    for name in methods.PRESETS:
+      methods.make_preset(name, "ours", task)
+  assert methods.TASKS["PointPush"].random_success == 0.004
+  with pytest.raises(ValueError, match="no task named 'antswim'"):
+    methods.task_of_module("experiments.antswim")
