@@ -23,9 +23,10 @@ does it for processes it knows share this machine (``experiments/cores.py``).
 
 CPU processes exchange these through gloo (jax >= 0.5.1). A process that dies makes the next
 exchange fail on the others (``jax_enable_recoverability`` keeps them alive to say so,
-instead of the runtime aborting them with a C++ stack trace); one that stops answering
-misses ``HEARTBEAT_S`` of heartbeats and is declared dead. Either way the others raise
-``ProcessLost`` and the run stops at its last checkpoint.
+instead of the runtime aborting them with a C++ stack trace), and they raise
+``ProcessLost``; one that stops answering (alive, silent) leaves the others waiting in the
+exchange, and after ``HEARTBEAT_S`` without its heartbeats ``watch``'s thread ends them with
+the same kind of line. Either way the run stops at its last checkpoint.
 """
 
 from __future__ import annotations
