@@ -45,6 +45,7 @@ import envs  # noqa: E402
 from envs import ant_maze  # noqa: E402
 from nonmono_jax import config as config_lib  # noqa: E402
 from nonmono_jax import io, methods, plan as plan_lib, processes, run, runlock, sinks  # noqa: E402
+from nonmono_jax import programs as programs_lib  # noqa: E402
 from nonmono_jax.methods import task_of_module  # noqa: E402,F401 - for experiments/<task>.py
 from nonmono_jax.plan import Plan  # noqa: E402,F401 - for callers of plan_from_args
 from nonmono_jax.run import Clock, NonFinite, TimeLimit  # noqa: E402,F401 - the run's, in tests
@@ -224,7 +225,8 @@ def main(task: str, argv=None) -> int:
     _use_cpu_devices(args)
     _join(args)
     plan = _plan(task, args, argv)
-    plan_lib.check_memory(plan)
+    programs = programs_lib.Programs(plan)
+    programs_lib.check_memory(plan, programs)
   except ValueError as e:
     parser.error(str(e))
   for warning in plan.warnings:
@@ -232,7 +234,7 @@ def main(task: str, argv=None) -> int:
   code = EXIT_BAD_INPUT
   try:
     with run.open_folder(plan, resume=args.resume is not None):
-      code = _run(plan, args)
+      code = _run(plan, args, programs)
   except (run.BadFolder, runlock.Locked, io.MetricsError, io.CheckpointError) as e:
     parser.error(str(e))
   finally:
@@ -308,7 +310,7 @@ def _given_dests(task: str, argv) -> set[str]:
   return set(vars(p.parse_args(argv)))
 
 
-def _run(plan: plan_lib.Plan, args: argparse.Namespace) -> int:
+def _run(plan: plan_lib.Plan, args: argparse.Namespace, programs=None) -> int:
   """Trains every method of the plan; the exit code (0, 1 failed, 3 time limit)."""
   writer = processes.writer()  # the others of a multi-process run write nothing of their own
   outputs, log = [], lambda *a, **k: None
@@ -328,7 +330,7 @@ def _run(plan: plan_lib.Plan, args: argparse.Namespace) -> int:
                                     f"with --resume {plan.out}", file=sys.stderr, flush=True))
   try:
     with run.remembering_ctrl_c(), sinks.closing(outputs):
-      run.run_plan(plan, outputs, clock, log)
+      run.run_plan(plan, outputs, clock, log, programs)
   except NonFinite as e:
     print(f"error: {e}", file=sys.stderr)
     return EXIT_FAILED

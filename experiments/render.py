@@ -22,6 +22,7 @@ import jax.numpy as jp
 import numpy as np
 
 from nonmono_jax import evaluate, io, plan as plan_lib
+from nonmono_jax import programs as programs_lib
 
 
 def rollout(run_dir: str, method: str | None = None, seed: int = 0, key: int = 0) -> dict:
@@ -33,7 +34,7 @@ def rollout(run_dir: str, method: str | None = None, seed: int = 0, key: int = 0
   config, spec = plan.configs[method], plan.spec
   if not 0 <= seed < spec.seeds:
     raise ValueError(f"seed must be in [0, {spec.seeds}), got {seed}")
-  trainer = plan.trainer(method)
+  trainer = programs_lib.Programs(plan).trainer(method)
   env = trainer.agent.env
   ckpts = io.Checkpoints(os.path.join(run_dir, "checkpoints", method))
   step = ckpts.latest_step()

@@ -120,7 +120,7 @@ def reproduce(folder: str, steps: int | None, wanted: list[str] | None, log=prin
   columns = io.file_columns(f"{folder}/metrics.csv")
   results = {m: Comparison(m, columns) for m in wanted}
   with tempfile.TemporaryDirectory() as tmp:
-    plan = dataclasses.replace(plan, out=tmp, trainers={}, warnings=[])
+    plan = dataclasses.replace(plan, out=tmp, warnings=[])
     for group in plan.groups():
       if set(group) & set(wanted):
         _rerun_group(plan, group, steps, committed, results, log)

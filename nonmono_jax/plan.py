@@ -14,7 +14,8 @@ whose configs share a static key (``hyper.static_key``) are one group: one progr
 A new run is built from the presets (``methods``) and dotted overrides; a saved one is read
 back from its ``config.json`` (``config.config_from_dict``), not rebuilt: a preset default
 changed since the run started is a warning, and the run resumes, plots and renders as it
-was. Every value is checked before anything compiles (``check_plan``, ``check_memory``);
+was. A plan is data: its trainers are built on the run side (``programs.Programs``, which
+also checks the memory). Every value is checked before anything compiles (``check_plan``);
 errors are ValueErrors of one line naming the field (or ``config.json``).
 """
 
@@ -29,18 +30,16 @@ import sys
 from importlib import metadata
 
 import jax
-import numpy as np
 
 import envs
 from envs import ant_maze
-from nonmono_jax import hyper, io, methods, train, validation
+from nonmono_jax import hyper, io, methods, validation
 from nonmono_jax.config import AgentConfig, config_from_dict, differences, flatten, get
 from nonmono_jax.config import missing_fields, override
 
 PACKAGES = ("jax", "jaxlib", "mujoco", "mujoco-mjx", "brax", "flax", "optax", "orbax-checkpoint",
             "numpy", "nonmono-jax")
 RUN_FIELDS = tuple(f.name for f in dataclasses.fields(methods.RunSpec))
-EVAL_RECORD_BYTES = 64  # an evaluation step's record (position, goal, blocks, success), about
 
 
 @dataclasses.dataclass
@@ -54,7 +53,6 @@ class Plan:
   overrides: dict  # dotted paths given on top of the presets
   widen: dict = dataclasses.field(default_factory=dict)  # envs_per_seed, grad_steps
   warnings: list = dataclasses.field(default_factory=list)  # a loaded run against today's code
-  trainers: dict = dataclasses.field(default_factory=dict, repr=False, compare=False)
   # a swept variant's name -> {"method": ..., "overrides": {path: value}} (methods: absent)
   variants: dict = dataclasses.field(default_factory=dict)
   # variants with one static key run as one program; False for runs from before (config.json
@@ -76,18 +74,6 @@ class Plan:
     for name, config in self.configs.items():
       by_key.setdefault(hyper.static_key(config), []).append(name)
     return list(by_key.values())
-
-  def trainer(self, names) -> train.Trainer:
-    """The trainer of a variant or a group of them, built once (the memory check and the run
-    share it): one variant's numbers as constants, a group's as lanes."""
-    names = (names,) if isinstance(names, str) else tuple(names)
-    if names not in self.trainers:
-      env = self.env()
-      size = {"num_seeds": self.spec.seeds, "chunk_steps": self.spec.chunk}
-      self.trainers[names] = (
-          train.make_trainer(env, self.configs[names[0]], **size) if len(names) == 1 else
-          train.make_group_trainer(env, [self.configs[n] for n in names], **size))
-    return self.trainers[names]
 
 
 # --- a new run ----------------------------------------------------------------------------------
@@ -260,73 +246,6 @@ def check_plan(task: str, spec: methods.RunSpec, configs: dict) -> None:
               if jax.process_count() > 1 else "")
     raise ValueError(f"--seeds ({spec.seeds}) must be a multiple of the device count "
                      f"({jax.device_count()}{across}; see --cpu-devices)")
-
-
-def state_bytes(plan: Plan, names) -> int:
-  """Bytes of the train state of a variant or group for all seeds (buffers, networks, envs):
-  the shapes of ``trainer.init`` from ``jax.eval_shape``, so nothing is allocated."""
-  shapes = jax.eval_shape(plan.trainer(names).init, jax.random.PRNGKey(0))
-  return sum(int(np.prod(x.shape, dtype=np.float64)) * x.dtype.itemsize
-             for x in jax.tree.leaves(shapes))
-
-
-EXACT_FROM = 0.25  # a run estimated above this share of the memory is compiled to count it
-MARGIN = 0.9  # the share of the available memory a run may take (the rest: Python, buffers)
-
-
-def check_memory(plan: Plan) -> None:
-  """Refuses a run that cannot fit in the memory available (groups of variants run one after
-  another: each is checked on its own). First an estimate (the train state and the
-  evaluation's per-step records); a run estimated above ``EXACT_FROM`` of the memory is then
-  compiled, and XLA's count of the chunk program (its state, temporaries and evaluation, per
-  device, times the devices sharing this memory) must fit in ``MARGIN`` of it."""
-  have = available_bytes()
-  spec = plan.spec
-  for group in plan.groups():
-    config, lanes = plan.configs[group[0]], spec.seeds * len(group)
-    state = state_bytes(plan, group)
-    evals = (lanes * config.num_envs * config.eval_episodes * spec.episode_length
-             * EVAL_RECORD_BYTES)
-    if have is not None and EXACT_FROM * have < state + evals <= have:
-      _check_program(plan, group, have)
-    if have is not None and state + evals > have:
-      raise ValueError(f"{' + '.join(group)} for {spec.seeds} seeds needs "
-                       f"{(state + evals) / 2**30:.1f} "
-                       f"GiB (train state with its replay buffers {state / 2**30:.1f}, "
-                       f"evaluation episodes {evals / 2**30:.1f}), more than the "
-                       f"{have / 2**30:.1f} GiB available: use fewer --seeds, smaller "
-                       f"buffers (--low.buffer_size, --middle.buffer_size) or shorter episodes")
-
-
-def _check_program(plan: Plan, group, have: int) -> None:
-  """XLA's count of the compiled chunk against ``MARGIN`` of the memory available."""
-  devices = jax.local_device_count() if jax.default_backend() == "cpu" else 1
-  need = plan.trainer(group).program_bytes()["total"] * devices
-  if need > MARGIN * have:
-    raise ValueError(f"{' + '.join(group)} for {plan.spec.seeds} seeds needs {need / 2**30:.1f} "
-                     f"GiB (XLA's count of the compiled chunk: train state, temporaries and "
-                     f"evaluation), more than {MARGIN:.0%} of the {have / 2**30:.1f} GiB "
-                     f"available: use fewer --seeds, smaller buffers (--low.buffer_size, "
-                     f"--middle.buffer_size) or shorter episodes")
-
-
-def available_bytes() -> int | None:
-  """Memory the run may use: the devices' limit on an accelerator, else MemAvailable."""
-  if jax.default_backend() != "cpu":
-    stats = jax.devices()[0].memory_stats() or {}
-    limit = stats.get("bytes_limit")
-    return None if limit is None else limit * jax.device_count()
-  try:
-    with open("/proc/meminfo") as f:
-      for line in f:
-        if line.startswith("MemAvailable:"):
-          return int(line.split()[1]) * 1024
-  except OSError:
-    pass
-  try:
-    return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-  except (ValueError, OSError):
-    return None
 
 
 # --- config.json ---------------------------------------------------------------------------------

@@ -31,6 +31,7 @@ import jax
 import numpy as np
 
 from nonmono_jax import io, processes, runlock
+from nonmono_jax.programs import Programs
 from nonmono_jax.plan import Plan, load_run, new_run  # noqa: F401 - the run's library entry points
 from nonmono_jax.plan import to_json
 
@@ -185,27 +186,31 @@ def _check_folder(plan: Plan, resume: bool) -> None:
 
 # --- training ------------------------------------------------------------------------------------
 
-def run_plan(plan: Plan, outputs, clock: Clock | None = None, log=print) -> None:
+def run_plan(plan: Plan, outputs, clock: Clock | None = None, log=print,
+             programs: Programs | None = None) -> None:
   """Every group of the plan's variants (``Plan.groups``), one after another (each continues
-  from its checkpoints); variants that share a program run as its lanes."""
-  clock = clock or Clock()
+  from its checkpoints); variants that share a program run as its lanes. ``programs``: the
+  plan's trainers, if already built (the memory check's)."""
+  clock, programs = clock or Clock(), programs or Programs(plan)
   for group in plan.groups():
-    for _ in run_group(plan, group, outputs, clock, log):
+    for _ in run_group(plan, group, outputs, clock, log, programs):
       pass
 
 
-def run_method(plan: Plan, method: str, outputs=(), clock: Clock | None = None, log=print):
+def run_method(plan: Plan, method: str, outputs=(), clock: Clock | None = None, log=print,
+               programs: Programs | None = None):
   """Trains one variant alone (its numbers compiled in); see ``run_group``."""
-  return run_group(plan, [method], outputs, clock, log)
+  return run_group(plan, [method], outputs, clock, log, programs)
 
 
-def run_group(plan: Plan, names, outputs=(), clock: Clock | None = None, log=print):
+def run_group(plan: Plan, names, outputs=(), clock: Clock | None = None, log=print,
+              programs: Programs | None = None):
   """Trains the variants ``names`` (one static key) as one program from their newest common
   checkpoint to ``plan.spec.steps``, writing every chunk to ``outputs`` (sinks) and yielding
   one ChunkResult per variant and chunk; see the module doc. Each variant keeps its own
   checkpoints (its lanes: the shape of a run of it alone), rows and sink files."""
   spec, names = plan.spec, list(names)
-  trainer = plan.trainer(names)
+  trainer = (programs or Programs(plan)).trainer(names)
   clock = clock or Clock()
   ckpts = [io.Checkpoints(os.path.join(plan.out, "checkpoints", n), writer=processes.writer())
            for n in names]

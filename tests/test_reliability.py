@@ -101,20 +101,21 @@ def test_bad_values_exit_2_in_one_line_before_the_folder_exists(tmp_path, capsys
 def test_the_memory_check_counts_the_compiled_program(tmp_path, capsys, monkeypatch):
   """A run whose train state fits but whose compiled chunk (state, temporaries, evaluation)
   does not is refused before its folder exists, by XLA's count of the program."""
-  from nonmono_jax import plan as plan_lib
+  from nonmono_jax import plan as plan_lib, programs as programs_lib
   probe = plan_lib.new_run("PointMaze", ["ours"], preset="quick",
                            overrides=TINY_OVERRIDES, run=TINY_SIZE)
-  state = plan_lib.state_bytes(probe, ["ours"])
-  evals = 2 * 2 * 100 * plan_lib.EVAL_RECORD_BYTES  # seeds x episodes x steps
-  program = probe.trainer("ours").program_bytes()["total"]
+  programs = programs_lib.Programs(probe)
+  state = programs_lib.state_bytes(programs, ["ours"])
+  evals = 2 * 2 * 100 * programs_lib.EVAL_RECORD_BYTES  # seeds x episodes x steps
+  program = programs.trainer("ours").program_bytes()["total"]
   assert program > state + evals  # temporaries come on top of the state
-  monkeypatch.setattr(plan_lib, "available_bytes", lambda: int((state + evals) * 1.02))
+  monkeypatch.setattr(programs_lib, "available_bytes", lambda: int((state + evals) * 1.02))
   out = tmp_path / "run"
   code, err, _ = _main(capsys, TINY_RUN + ["--method", "ours", "--out", str(out)])
   assert code == 2 and len(err) == 1 and "XLA's count of the compiled chunk" in err[0], err
   assert not out.exists()
-  monkeypatch.setattr(plan_lib, "available_bytes", lambda: int(program * 1.2))
-  plan_lib.check_memory(probe)  # fits: no error
+  monkeypatch.setattr(programs_lib, "available_bytes", lambda: int(program * 1.2))
+  programs_lib.check_memory(probe, programs)  # fits: no error
 
 
 def test_the_validator_walks_any_config_by_its_type_hints():

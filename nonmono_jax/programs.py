@@ -1,0 +1,108 @@
+"""The compiled side of a plan: its trainers, built once per group of variants, and whether
+they fit in memory, checked before the run folder is made.
+
+    programs = programs_lib.Programs(plan)        # a Plan stays data; this builds programs
+    programs_lib.check_memory(plan, programs)     # ValueError naming what does not fit
+    trainer = programs.trainer(["ours"])          # the memory check and the run share it
+"""
+
+from __future__ import annotations
+
+import os
+
+import jax
+import numpy as np
+
+from nonmono_jax import train
+from nonmono_jax.plan import Plan
+
+EVAL_RECORD_BYTES = 64  # an evaluation step's record (position, goal, blocks, success), about
+
+
+class Programs:
+  """One trainer per group of variants of ``plan``, built on first use: one variant's numbers
+  as constants, a group's as lanes (``train.make_trainer`` / ``make_group_trainer``)."""
+
+  def __init__(self, plan: Plan):
+    self.plan = plan
+    self._trainers: dict = {}
+
+  def trainer(self, names) -> train.Trainer:
+    names = (names,) if isinstance(names, str) else tuple(names)
+    if names not in self._trainers:
+      plan = self.plan
+      env = plan.env()
+      size = {"num_seeds": plan.spec.seeds, "chunk_steps": plan.spec.chunk}
+      self._trainers[names] = (
+          train.make_trainer(env, plan.configs[names[0]], **size) if len(names) == 1 else
+          train.make_group_trainer(env, [plan.configs[n] for n in names], **size))
+    return self._trainers[names]
+
+
+def state_bytes(programs: Programs, names) -> int:
+  """Bytes of the train state of a variant or group for all seeds (buffers, networks, envs):
+  the shapes of ``trainer.init`` from ``jax.eval_shape``, so nothing is allocated."""
+  shapes = jax.eval_shape(programs.trainer(names).init, jax.random.PRNGKey(0))
+  return sum(int(np.prod(x.shape, dtype=np.float64)) * x.dtype.itemsize
+             for x in jax.tree.leaves(shapes))
+
+
+EXACT_FROM = 0.25  # a run estimated above this share of the memory is compiled to count it
+MARGIN = 0.9  # the share of the available memory a run may take (the rest: Python, buffers)
+
+
+def check_memory(plan: Plan, programs: "Programs | None" = None) -> None:
+  """Refuses a run that cannot fit in the memory available (groups of variants run one after
+  another: each is checked on its own). First an estimate (the train state and the
+  evaluation's per-step records); a run estimated above ``EXACT_FROM`` of the memory is then
+  compiled, and XLA's count of the chunk program (its state, temporaries and evaluation, per
+  device, times the devices sharing this memory) must fit in ``MARGIN`` of it."""
+  programs = programs or Programs(plan)
+  have = available_bytes()
+  spec = plan.spec
+  for group in plan.groups():
+    config, lanes = plan.configs[group[0]], spec.seeds * len(group)
+    state = state_bytes(programs, group)
+    evals = (lanes * config.num_envs * config.eval_episodes * spec.episode_length
+             * EVAL_RECORD_BYTES)
+    if have is not None and EXACT_FROM * have < state + evals <= have:
+      _check_program(programs, group, have)
+    if have is not None and state + evals > have:
+      raise ValueError(f"{' + '.join(group)} for {spec.seeds} seeds needs "
+                       f"{(state + evals) / 2**30:.1f} "
+                       f"GiB (train state with its replay buffers {state / 2**30:.1f}, "
+                       f"evaluation episodes {evals / 2**30:.1f}), more than the "
+                       f"{have / 2**30:.1f} GiB available: use fewer --seeds, smaller "
+                       f"buffers (--low.buffer_size, --middle.buffer_size) or shorter episodes")
+
+
+def _check_program(programs: Programs, group, have: int) -> None:
+  """XLA's count of the compiled chunk against ``MARGIN`` of the memory available."""
+  devices = jax.local_device_count() if jax.default_backend() == "cpu" else 1
+  need = programs.trainer(group).program_bytes()["total"] * devices
+  if need > MARGIN * have:
+    raise ValueError(f"{' + '.join(group)} for {programs.plan.spec.seeds} seeds needs "
+                     f"{need / 2**30:.1f} "
+                     f"GiB (XLA's count of the compiled chunk: train state, temporaries and "
+                     f"evaluation), more than {MARGIN:.0%} of the {have / 2**30:.1f} GiB "
+                     f"available: use fewer --seeds, smaller buffers (--low.buffer_size, "
+                     f"--middle.buffer_size) or shorter episodes")
+
+
+def available_bytes() -> int | None:
+  """Memory the run may use: the devices' limit on an accelerator, else MemAvailable."""
+  if jax.default_backend() != "cpu":
+    stats = jax.devices()[0].memory_stats() or {}
+    limit = stats.get("bytes_limit")
+    return None if limit is None else limit * jax.device_count()
+  try:
+    with open("/proc/meminfo") as f:
+      for line in f:
+        if line.startswith("MemAvailable:"):
+          return int(line.split()[1]) * 1024
+  except OSError:
+    pass
+  try:
+    return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+  except (ValueError, OSError):
+    return None
