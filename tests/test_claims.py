@@ -10,10 +10,10 @@ from nonmono_jax import io
 STEPS = np.arange(110_000, 1_000_001, 10_000)
 
 
-def _rows(method, s_e, ppo=2000, seeds=8):
+def _rows(method, s_e, ppo=2000, seeds=8, upto=1_000_000):
   """metrics.csv rows of one method: S_E per (seed, step) from ``s_e(seed, step)``."""
   rows = []
-  for step in STEPS:
+  for step in STEPS[STEPS <= upto]:
     for seed in range(seeds):
       row = {c: "" for c in io.COLUMNS}
       row.update(task="AntPush", method=method, seed=str(seed), env_step=str(step),
@@ -56,3 +56,16 @@ def test_half_the_seeds_learning_cannot_be_told_apart():
   assert r["onset"]["reading"] == "does not hold"  # nothing by 600K
   with pytest.raises(ValueError, match="both ours and hiro"):
     claims.readings(_rows("ours", half))
+
+
+def test_a_run_still_going_is_read_only_where_the_protocol_reads_it():
+  """At 300K: the early claim is read (250K), the others wait for 600K and 1M."""
+  ours = _rows("ours", lambda seed, t: 0.0, upto=300_000)
+  hiro = _rows("hiro", lambda seed, t: float(t >= 200_000), upto=300_000)
+  r = claims.readings(ours + hiro)
+  assert r["early_late"]["early"] == "holds"  # HIRO 1 against ours 0 at 250K
+  assert r["final"]["ours"]["reading"] == "n/a (at 300000 of 1000000)"
+  assert r["onset"]["reading"] == "n/a (at 300000: read at 600000)"
+  assert r["early_late"]["behind"] == "n/a (not reached)"
+  assert r["modes"]["most_ppo_before_1m"].startswith("n/a")
+  assert r["modes"]["order"].endswith("(at 300000, not judged)")
