@@ -69,12 +69,8 @@ class SeedState:
 
   def learner_params(self) -> dict:
     """The parameters of every learner the seed has, by level name (for NaN checks)."""
-    parts = {"low": self.low.params, "middle": self.middle.params}
-    if isinstance(self.middle_ppo, Explorer):
-      parts["middle_ppo"] = self.middle_ppo.learner.params
-    if isinstance(self.chooser, modes.TopState):
-      parts["top"] = self.chooser.learner.params
-    return parts
+    return {"low": self.low.params, "middle": self.middle.params,
+            **self.middle_ppo.learner_params(), **self.chooser.learner_params()}
 
 
 class _NamedKeys:
@@ -186,7 +182,7 @@ def _counts(prefix, counted):
 
 def _new_segments(p: _Parts, state, obs, key, warm, t, noise):
   """The goals of new segments from ``obs`` in each env's mode (random where ``warm``)."""
-  shared = {"td3": state.middle.params, "ppo": p.middle.ppo_params(state.middle_ppo),
+  shared = {"td3": state.middle.params, "ppo": p.middle.explorer.params(state.middle_ppo),
             "noise": noise}
   per_env = {"obs": obs, "mode": state.mode, "key": jax.random.split(key, p.config.num_envs)}
   goal, ppo_action, log_prob = _per_env(
@@ -206,7 +202,7 @@ def _init(p: _Parts, key) -> SeedState:
   chooser, mode = p.chooser.init(keys, env_state.obs, middle.params)
   state = SeedState(
       env=env_state, low=p.low.td3.init(keys.low), middle=middle,
-      middle_ppo=p.middle.init_explorer(keys.middle_ppo, E), chooser=chooser,
+      middle_ppo=p.middle.explorer.init(keys.middle_ppo, E), chooser=chooser,
       low_buffer=p.low.init_buffer(), middle_buffer=p.middle.init_buffer(),
       goal=jp.zeros((E, hierarchy.GOAL_SIZE)),
       segment=jax.vmap(p.middle.new_segment)(env_state.obs, jp.zeros((E, hierarchy.GOAL_SIZE)),
@@ -281,7 +277,7 @@ def _end_segment(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys, hp: 
         lambda low_params, e: p.middle.close(e["segment"], clock.episode_end, low_params,
                                              e["key"]), state.low.params, per_env)
     state = state.replace(middle_buffer=buffers.add(state.middle_buffer, items),
-                          middle_ppo=p.middle.store(state.middle_ppo, t, steps))
+                          middle_ppo=p.middle.explorer.store(state.middle_ppo, t, steps))
     decision = modes.Decision(t=t, episode_end=clock.episode_end, obs=state.env.obs,
                               s_c=items["transition"].next_obs,
                               reward=items["transition"].reward, middle=state.middle.params)
@@ -310,11 +306,11 @@ def _updates(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys, hp: hype
     return state.replace(middle=new), m
 
   def middle_ppo_update(state):
-    new, m = p.middle.ppo_update(state.middle_ppo, t, hp.middle_ppo)
+    new, m = p.middle.explorer.update(state.middle_ppo, t, hp.middle_ppo)
     return state.replace(middle_ppo=new), m
 
   gates = [("low", live, low_update), ("middle", live & clock.segment_end, middle_update)]
-  if p.middle.ppo is not None:
+  if p.middle.explorer.trains:
     every = p.config.middle_ppo_every
     gates.append(("middle_ppo", live & (t % every == every - 1), middle_ppo_update))
   metrics = {}

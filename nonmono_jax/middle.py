@@ -55,29 +55,104 @@ class Explorer:
   learner: ppo.PPOState
   rollout: ppo.Rollout
 
+  def learner_params(self) -> dict:
+    return {"middle_ppo": self.learner.params}
+
 
 @struct.dataclass
 class NoExplorer:
   """The Middle PPO of a method without one (HIRO, Ref:Uniform): nothing."""
 
+  def learner_params(self) -> dict:
+    return {}
+
+
+@dataclasses.dataclass(frozen=True)
+class PPOExplorer:
+  """The Middle PPO as a sub-policy (``make_middle`` builds it): its goal proposals, what it
+  stores of a segment, its learning. ``Idle`` is the same for a method without one."""
+
+  ppo: ppo.PPO
+  config: AgentConfig
+  init_rollout: Callable[[], ppo.Rollout]
+  trains = True
+
+  def std(self, t):
+    return ppo.gaussian_std(t, self.config.middle_ppo)
+
+  def init(self, key, num_envs) -> Explorer:
+    """The learner (from ``key``) and an empty rollout per env."""
+    rollout = jax.vmap(lambda _: self.init_rollout())(jp.arange(num_envs))
+    return Explorer(learner=self.ppo.init(key), rollout=rollout)
+
+  def params(self, state: Explorer):
+    return state.learner.params
+
+  def propose(self, params, obs, key, t):
+    """(its sample, log pi of it) at (s, target)."""
+    return self.ppo.act(params, obs, key, self.std(t))
+
+  def stored(self, params, obs, g, proposal, t):
+    """(action, log pi) the rollout keeps for a segment that ran goal g: PPO's own sample
+    ("own", the paper's code) or g ("executed")."""
+    if self.config.middle_ppo_sample == "own":
+      return proposal
+    return g, self.ppo.log_prob(params, obs, g, self.std(t))
+
+  def store(self, state: Explorer, t, steps) -> Explorer:
+    """The segments' PPO steps (E, ...) into their rollout slot, the segment ending at t."""
+    slot = (t // self.config.c) % self.config.middle_rollout_length
+    rollout = jax.tree.map(lambda r, x: r.at[:, slot].set(x), state.rollout, steps)
+    return state.replace(rollout=rollout)
+
+  def update(self, state: Explorer, t, hp: ppo.PPOHyper | None = None):
+    """One update on the rollout, at the std of step t (reported as ``std``)."""
+    std = self.std(t)
+    new, m = self.ppo.update(state.learner, state.rollout, std, None,
+                             self.ppo.hyper if hp is None else hp)
+    return state.replace(learner=new), {**m, "std": std}
+
+
+@dataclasses.dataclass(frozen=True)
+class Idle:
+  """No Middle PPO: proposes nothing any mode would take, stores and learns nothing."""
+
+  trains = False
+
+  def std(self, t):
+    return jp.zeros(())
+
+  def init(self, key, num_envs) -> NoExplorer:
+    return NoExplorer()
+
+  def params(self, state):
+    return None
+
+  def propose(self, params, obs, key, t):
+    return jp.zeros(hierarchy.GOAL_SIZE), jp.zeros(())
+
+  def stored(self, params, obs, g, proposal, t):
+    return g, jp.zeros(())
+
+  def store(self, state, t, steps):
+    return state
+
+  def update(self, state, t, hp=None):
+    return state, {}
+
 
 @dataclasses.dataclass(frozen=True)
 class Middle:
   td3: td3.TD3
-  ppo: ppo.PPO | None  # None where the method has no Middle PPO
+  explorer: PPOExplorer | Idle  # the Middle PPO, or Idle where the method has none
   init_buffer: Callable[[], buffers.ReplayBuffer]
   init_rollout: Callable[[], ppo.Rollout]
-  init_explorer: Callable[[jax.Array, int], Explorer | NoExplorer]
   goal: Callable[..., tuple[jax.Array, jax.Array]]
   new_segment: Callable[..., Segment]
   record: Callable[..., Segment]
   close: Callable[..., tuple[dict, ppo.Rollout]]
-  store: Callable[..., Explorer | NoExplorer]
-  ppo_params: Callable[[Explorer | NoExplorer], dict | None]
   value: Callable[..., jax.Array]
   td3_update: Callable[..., tuple[td3.TD3State, dict]]
-  ppo_update: Callable[..., tuple[Explorer, dict]]
-  ppo_std: Callable[[jax.Array], jax.Array]
   policy: Callable[..., jax.Array]  # (td3 params, obs) -> the noiseless Middle TD3 goal
 
 
@@ -92,14 +167,8 @@ def make_middle(obs_size: int, action_size: int, target, config: AgentConfig,
   context = target if config.middle_td3_input == "state_target" else jp.zeros((0,), jp.float32)
   learner = td3.make_td3(obs_size, context.shape[0], k, goal_range, config.middle)
   ends_returns = 0.0 if config.returns_cross_episodes else 1.0
-  explorer = (ppo.make_ppo(obs_size + k, k, config.middle_ppo, goal_range)
-              if config.uses_middle_ppo else None)
   n_rollout = config.middle_rollout_length
   at_store = config.middle_relabel == "store"
-  own_sample = config.middle_ppo_sample == "own"
-
-  def ppo_std(t):
-    return ppo.gaussian_std(t, config.middle_ppo)
 
   def random_goal(key):
     if config.random_goal == "uniform":
@@ -116,18 +185,12 @@ def make_middle(obs_size: int, action_size: int, target, config: AgentConfig,
     k1, k2, k3 = jax.random.split(key, 3)
     g_random = random_goal(k1)
     g_td3 = learner.explore(td3_params, obs, context, k2, noise)
-    if explorer is None:
-      g = jp.where(warm | (mode == hierarchy.RANDOM), g_random, g_td3)
-      return g, g, jp.zeros(())
-    std = ppo_std(t)
     ppo_obs = jp.concatenate([obs, target])
-    sample, sample_logp = explorer.act(ppo_params, ppo_obs, k3, std)
-    g_ppo = jp.clip(sample, -goal_range, goal_range)
+    proposal = explorer.propose(ppo_params, ppo_obs, k3, t)
+    g_ppo = jp.clip(proposal[0], -goal_range, goal_range)
     g = jp.select([warm | (mode == hierarchy.RANDOM), mode == hierarchy.PPO],
                   [g_random, g_ppo], g_td3)
-    if own_sample:
-      return g, sample, sample_logp
-    return g, g, explorer.log_prob(ppo_params, ppo_obs, g, std)
+    return (g, *explorer.stored(ppo_params, ppo_obs, g, proposal, t))
 
   def new_segment(obs, g, ppo_action, log_prob):
     return Segment(obs=jp.zeros((c + 1, obs_size)).at[0].set(obs),
@@ -175,25 +238,6 @@ def make_middle(obs_size: int, action_size: int, target, config: AgentConfig,
     return buffers.template(lambda *a: pack(*a)[1], example_segment, vec(k), False,
                             lead=(n_rollout,))
 
-  def init_explorer(key, num_envs):
-    """The Middle PPO's learner (from ``key``) and an empty rollout per env, if it has one."""
-    if explorer is None:
-      return NoExplorer()
-    rollout = jax.vmap(lambda _: init_rollout())(jp.arange(num_envs))
-    return Explorer(learner=explorer.init(key), rollout=rollout)
-
-  def ppo_params(explorer_state):
-    """The Middle PPO's parameters for ``goal`` (None without a Middle PPO)."""
-    return None if explorer is None else explorer_state.learner.params
-
-  def store(explorer_state, t, steps):
-    """The segments' PPO steps (E, ...) into their rollout slot, the segment ending at t."""
-    if explorer is None:
-      return explorer_state
-    slot = (t // c) % n_rollout
-    rollout = jax.tree.map(lambda r, x: r.at[:, slot].set(x), explorer_state.rollout, steps)
-    return explorer_state.replace(rollout=rollout)
-
   def policy(td3_params, obs):
     """The noiseless Middle TD3 goal at s (towards the target)."""
     return learner.act(td3_params, obs, context)
@@ -226,14 +270,8 @@ def make_middle(obs_size: int, action_size: int, target, config: AgentConfig,
 
     return learning.repeat(one, state, config.middle_updates)
 
-  def ppo_update(explorer_state: Explorer, t, hp: ppo.PPOHyper | None = None):
-    """One Middle PPO update on the rollout, at the std of step t (reported as ``std``)."""
-    std = ppo_std(t)
-    new, m = explorer.update(explorer_state.learner, explorer_state.rollout, std, None,
-                             explorer.hyper if hp is None else hp)
-    return explorer_state.replace(learner=new), {**m, "std": std}
-
-  return Middle(td3=learner, ppo=explorer, init_buffer=init_buffer, init_rollout=init_rollout,
-                init_explorer=init_explorer, goal=goal, new_segment=new_segment, record=record,
-                close=close, store=store, ppo_params=ppo_params, value=value, td3_update=td3_update,
-                ppo_update=ppo_update, ppo_std=ppo_std, policy=policy)
+  explorer = (PPOExplorer(ppo.make_ppo(obs_size + k, k, config.middle_ppo, goal_range), config,
+                          init_rollout) if config.uses_middle_ppo else Idle())
+  return Middle(td3=learner, explorer=explorer, init_buffer=init_buffer,
+                init_rollout=init_rollout, goal=goal, new_segment=new_segment, record=record,
+                close=close, value=value, td3_update=td3_update, policy=policy)

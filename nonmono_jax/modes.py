@@ -56,6 +56,9 @@ class Decision:
 class Fixed:
   """HIRO's chooser has no state."""
 
+  def learner_params(self) -> dict:
+    return {}
+
 
 @struct.dataclass
 class TopState:
@@ -64,6 +67,9 @@ class TopState:
   learner: ppo.PPOState
   rollout: ppo.Rollout
   horizon: Horizon
+
+  def learner_params(self) -> dict:
+    return {"top": self.learner.params}
 
 
 @dataclasses.dataclass(frozen=True)

@@ -56,6 +56,9 @@ class TriggerState:
   filled: jax.Array  # int32: segments in the window (at most k)
   explore_left: jax.Array  # int32: Middle decisions left in the explore period (0: exploit)
 
+  def learner_params(self) -> dict:
+    return {}  # the trigger learns nothing: V is the Middle TD3's
+
 
 @dataclasses.dataclass(frozen=True)
 class InformedSwitch:

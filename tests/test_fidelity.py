@@ -106,13 +106,13 @@ def test_middle_transition_done_is_success_and_relabelled_at_store(success):
 def test_middle_ppo_stores_its_own_sample_in_other_modes(sample):
   config, _, mid = _middle(middle_ppo_sample=sample)
   td3_params = mid.td3.init(jax.random.PRNGKey(0)).params
-  ppo_params = mid.ppo.init(jax.random.PRNGKey(1)).params
+  ppo_params = mid.explorer.ppo.init(jax.random.PRNGKey(1)).params
   obs, key, t = jp.ones(OBS), jax.random.PRNGKey(2), 0
   for mode in (hierarchy.TD3, hierarchy.RANDOM, hierarchy.PPO):
     g, stored, logp = mid.goal(td3_params, ppo_params, obs, mode, key, False, t)
     x = jp.concatenate([obs, jp.array([0.0, 9.5, 0.5])])
-    sampled, sampled_logp = mid.ppo.act(ppo_params, x, jax.random.split(key, 3)[2],
-                                        mid.ppo_std(t))
+    sampled, sampled_logp = mid.explorer.ppo.act(ppo_params, x, jax.random.split(key, 3)[2],
+                                        mid.explorer.std(t))
     if sample == "own":  # PPO's own sample, whichever mode ran the segment
       np.testing.assert_allclose(stored, sampled)
       np.testing.assert_allclose(logp, sampled_logp, rtol=1e-6)
@@ -120,7 +120,7 @@ def test_middle_ppo_stores_its_own_sample_in_other_modes(sample):
         assert not np.allclose(stored, g)
     else:
       np.testing.assert_allclose(stored, g)
-      np.testing.assert_allclose(logp, mid.ppo.log_prob(ppo_params, x, g, mid.ppo_std(t)),
+      np.testing.assert_allclose(logp, mid.explorer.ppo.log_prob(ppo_params, x, g, mid.explorer.std(t)),
                                  rtol=1e-6)
 
 

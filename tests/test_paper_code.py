@@ -90,7 +90,7 @@ def test_middle_td3_sees_the_state_alone_in_the_code():
   buffer = mid.init_buffer()
   assert buffer.data["transition"].context.shape[-1] == 0
   # The Middle PPO still sees (s, target).
-  ppo_params = mid.ppo.init(jax.random.PRNGKey(1)).params
+  ppo_params = mid.explorer.ppo.init(jax.random.PRNGKey(1)).params
   assert ppo_params["actor"]["params"]["dense_0"]["kernel"].shape[0] == OBS + 3
 
 
