@@ -27,12 +27,13 @@ hp)``; without it, the config's own, as constants. Every gate is a function of t
 from __future__ import annotations
 
 import dataclasses
-from typing import Any, Callable
+from typing import Callable
 
 import jax
 import jax.numpy as jp
 from flax import struct
 
+from envs.base import MazeEnv, MazeState
 from nonmono_jax import buffers, hierarchy, hyper, modes, td3
 from nonmono_jax import evaluate as evaluate_lib
 from nonmono_jax.config import AgentConfig
@@ -48,11 +49,11 @@ N_MODES = len(hierarchy.MODES)
 class SeedState:
   """Everything one seed owns; per-env fields have a leading ``num_envs`` axis."""
 
-  env: Any  # envs.MazeState, (E,)
+  env: MazeState  # (E,)
   low: td3.TD3State
   middle: td3.TD3State
   middle_ppo: Explorer | NoExplorer  # the Middle PPO and its rollout (E, ...), if any
-  chooser: Any  # the mode chooser's state (modes.py): Fixed, TopState or TriggerState (E,)
+  chooser: modes.ChooserState  # Fixed, TopState or TriggerState (modes.py), (E,)
   low_buffer: buffers.ReplayBuffer
   middle_buffer: buffers.ReplayBuffer
   goal: jax.Array  # (E, 3)
@@ -141,7 +142,7 @@ class Agent:
   """The agent's pure functions: ``init(key) -> SeedState`` and ``step(state, t)``."""
 
   config: AgentConfig
-  env: Any
+  env: MazeEnv
   low: Low
   middle: Middle
   chooser: modes.ModeChooser
@@ -156,7 +157,7 @@ class _Parts:
   """The levels and schedule that the phases below share (static)."""
 
   config: AgentConfig
-  env: Any
+  env: MazeEnv
   low: Low
   middle: Middle
   chooser: modes.ModeChooser

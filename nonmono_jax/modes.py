@@ -1,9 +1,11 @@
 """How g_expl_mode is chosen: one interface, three choosers; the only thing methods differ in.
+By ``AgentConfig.switch``:
 
-    fixed    HIRO: always TD3, no starting mode
-    top      ours: the Top PPO picks a mode per Top horizon (top.py); RANDOM in the starting mode
-    trigger  Ref:Uniform / Ref:PPO: the informed switch at Middle decisions (switch.py);
-             the explore mode in the starting mode
+    "none"         HIRO: always TD3, no starting mode (``Fixed``)
+    "top"          ours: the Top PPO picks a mode per Top horizon (top.py); RANDOM in the
+                   starting mode (``TopState``)
+    "homeostasis"  Ref:Uniform / Ref:PPO: the informed trigger at Middle decisions
+                   (switch.py); the explore mode in the starting mode (``TriggerState``)
 
 A chooser owns its state (``SeedState.chooser``: ``Fixed``, ``TopState`` or the trigger's
 ``TriggerState``, per env) and four pure functions:
@@ -24,7 +26,7 @@ trigger): numbers read at run time, so variants of one program differ in them.
 from __future__ import annotations
 
 import dataclasses
-from typing import Any, Callable
+from typing import Callable, Union
 
 import jax
 import jax.numpy as jp
@@ -34,7 +36,7 @@ from nonmono_jax import hierarchy, ppo, td3
 from nonmono_jax import metrics as metrics_lib
 from nonmono_jax.config import AgentConfig
 from nonmono_jax.gates import gated
-from nonmono_jax.switch import make_informed_switch
+from nonmono_jax.switch import TriggerState, make_informed_switch
 from nonmono_jax.top import Horizon, make_top
 
 N_MODES = len(hierarchy.MODES)
@@ -72,15 +74,18 @@ class TopState:
     return {"top": self.learner.params}
 
 
+ChooserState = Union[Fixed, TopState, TriggerState]  # what a seed's chooser holds (per env)
+
+
 @dataclasses.dataclass(frozen=True)
 class ModeChooser:
   name: str  # "none", "top" or "homeostasis" (config.switch)
   starting_mode: int
   live_from: int  # warm-up + the starting mode: the first step of the chooser's own choices
-  init: Callable[..., tuple[Any, jax.Array]]
-  accumulate: Callable[..., Any]
-  decide: Callable[..., tuple[Any, jax.Array, dict]]
-  update: Callable[..., tuple[Any, dict]]
+  init: Callable[..., tuple[ChooserState, jax.Array]]
+  accumulate: Callable[..., ChooserState]
+  decide: Callable[..., tuple[ChooserState, jax.Array, dict]]
+  update: Callable[..., tuple[ChooserState, dict]]
 
 
 def _unchanged_accumulate(state, reward, success):
