@@ -127,7 +127,8 @@ def main(argv=None):
           r = measure(name, method, s, e, args.chunk, args.repeats, time_eval, u, args.physics)
           rows.append(r)
           mib = r["memory"].get("total", 0) / 2**20
-          print(f"{name:9s} {r['physics']:3s} {method:5s} seeds {s:3d} x envs {e:3d} on {r['devices']} device(s): "
+          print(f"{name:9s} {r['physics']:3s} {method:5s} seeds {s:3d} x envs {e:3d} on "
+                f"{r['devices']} device(s): "
                 f"{r['env_steps_per_s']:8.1f} env steps/s (compile {r['compile_s']:.1f} s, "
                 f"first chunk {r['first_chunk_s']:.1f} s, program {mib:.0f} MiB; one "
                 f"evaluation {r['eval_s']} s)", flush=True)

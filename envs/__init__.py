@@ -56,5 +56,5 @@ def make(name: str, **overrides):
   return env_cls(tasks.TASKS[task], config_cls(**overrides))
 
 
-__all__ = ["make", "NAMES", "valid_overrides", "has_physics", "AntMazeEnv", "PointMazeEnv", "AntConfig",
-           "PointConfig", "EnvConfig", "MazeEnv", "MazeState", "tasks"]
+__all__ = ["make", "NAMES", "valid_overrides", "has_physics", "AntMazeEnv", "PointMazeEnv",
+           "AntConfig", "PointConfig", "EnvConfig", "MazeEnv", "MazeState", "tasks"]

@@ -193,8 +193,8 @@ PAIRS = (("ref-uniform", "ref-ppo"),)  # compared besides ours against each meth
 
 
 def reading(p, a: str, b: str) -> str:
-  """The study's reading of P(A > B) (docs/results.md, "The study", 4): A above B if its 95 % interval
-  lies above 0.5, B above A if below, else they cannot be told apart."""
+  """The study's reading of P(A > B) (docs/results.md, "The study", 4): A above B if its 95 %
+  interval lies above 0.5, B above A if below, else they cannot be told apart."""
   if p is None:
     return "n/a"
   if p[1] > 0.5:

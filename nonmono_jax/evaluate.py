@@ -24,7 +24,8 @@ def make_episode(env, c: int, low_act: Callable, middle_act: Callable) -> Callab
   """``episode(low_params, middle_params, key) -> (reset state, per-step records)``.
 
   ``low_act(params, obs, goal)`` and ``middle_act(params, obs)`` are the noiseless TD3
-  policies (the Middle's towards the env's target: ``middle.Middle.policy``). Record t (of ``env.episode_length``): after step t the robot's ``pos``,
+  policies (the Middle's towards the env's target: ``middle.Middle.policy``). Record t (of
+  ``env.episode_length``): after step t the robot's ``pos``,
   ``success``, ``distance``, ``reward``, the ``blocks``' centres and whether the physics went
   ``unstable``, and the world point ``goal`` = s[:3] + g that the Low was sent to during step t.
   """

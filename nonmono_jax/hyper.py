@@ -17,8 +17,8 @@ and 1, so a variant alone computes what it computed when they were Python branch
 The learners' numbers (learning rates, gamma, tau, noises, PPO's clip and coefficients) are
 traced too: each learner's ``TD3Hyper`` / ``PPOHyper``, the learning rates scaling the
 updates of ``optax.adam(1.0)`` (``learning.gradient_step``). Everything else (sizes, c,
-horizons, schedules, which learners and which switch exist) is static: docs/training.md, "Variants as
-lanes".
+horizons, schedules, which learners and which switch exist) is static: docs/training.md,
+"Variants as lanes".
 """
 
 from __future__ import annotations

@@ -19,7 +19,8 @@ HIRO keeps its Middle TD3 target smoothing and Gaussian goal noise; ours and the
 have neither (exploration comes from the modes). The Ref methods' TD3 goals are noiseless too
 (their explore mode is the exploration).
 
-Task presets: the Ant tasks are the paper's (docs/spec.md: alpha, S_O, rho, 1000-step episodes, 3.15M / 6M steps).
+Task presets: the Ant tasks are the paper's (docs/spec.md: alpha, S_O, rho, 1000-step episodes,
+3.15M / 6M steps).
 The point tasks are the same methods at a CPU scale: 64-64 networks with faster actors, a
 2K-step warm-up, a 10K-step starting mode, 100-step episodes and evaluation every 2K steps.
 A method's overrides are applied after its task's (``make_config``: task, method, rho, yours).
@@ -155,8 +156,8 @@ class RunSpec:
 
 
 # (preset, robot) -> (dotted agent overrides, run size); the paper's length is the task's.
-# paper: a row per evaluation (eval_every), 5 seeds (our choice: the paper does not say how many it ran) and a checkpoint every 100K steps
-# on the ant. quick: a 2-core CPU runs a few methods of a point task in about 10 minutes; on
+# paper: a row per evaluation (eval_every), 5 seeds (our choice: the paper does not say how
+# many it ran) and a checkpoint every 100K steps on the ant. quick: a 2-core CPU runs a few methods of a point task in about 10 minutes; on
 # the ant it shows the whole pipeline (warm-up, starting mode, all modes live, evaluations) in
 # minutes, not learning.
 PRESET_TABLE = {

@@ -1,8 +1,8 @@
 """Shared test setup: persistent XLA compilation cache and session-wide compiled envs.
 
 XLA compile time dominates this suite on a CPU (an MJX ant maze program takes tens of
-seconds; the ant on MuJoCo C, the default physics on a CPU, about one), so every program is compiled once per session (the fixtures below) and the
-compiled executables are cached on disk across sessions (``.jax_cache/`` or
+seconds; the ant on MuJoCo C, the default physics on a CPU, about one), so every program is
+compiled once per session (the fixtures below) and the compiled executables are cached on disk across sessions (``.jax_cache/`` or
 ``$JAX_COMPILATION_CACHE_DIR``).
 """
 

@@ -61,7 +61,8 @@ def test_reset_rows_hold_the_reset_state(push):
   np.testing.assert_array_equal(rows[:, 0], 0.0)  # time
   np.testing.assert_array_equal(rows[:, 1 + nq + nv:], 0.0)  # no warm start yet
   np.testing.assert_allclose(np.linalg.norm(rows[:, 4:8], axis=1), 1.0, rtol=1e-6)
-  np.testing.assert_array_equal(np.asarray(s.obs[:, :15]), np.asarray(s.pipeline_state.qpos[:, :15]))
+  np.testing.assert_array_equal(np.asarray(s.obs[:, :15]),
+                                np.asarray(s.pipeline_state.qpos[:, :15]))
 
 
 def test_state_crossing_to_the_host_is_exact(push):

@@ -120,8 +120,8 @@ def test_middle_ppo_stores_its_own_sample_in_other_modes(sample):
         assert not np.allclose(stored, g)
     else:
       np.testing.assert_allclose(stored, g)
-      np.testing.assert_allclose(logp, mid.explorer.ppo.log_prob(ppo_params, x, g, mid.explorer.std(t)),
-                                 rtol=1e-6)
+      want = mid.explorer.ppo.log_prob(ppo_params, x, g, mid.explorer.std(t))
+      np.testing.assert_allclose(logp, want, rtol=1e-6)
 
 
 def test_evaluation_uses_the_target_actors():

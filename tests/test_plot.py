@@ -191,7 +191,8 @@ def test_drawing_the_same_figure_twice_writes_the_same_bytes(tmp_path):
                    env={**os.environ, "PYTHONPATH": root})
   assert b"/CreationDate" not in (tmp_path / "a" / "fig.pdf").read_bytes()
   for ext in ("png", "pdf"):
-    assert (tmp_path / "a" / f"fig.{ext}").read_bytes() == (tmp_path / "b" / f"fig.{ext}").read_bytes()
+    a, b = (tmp_path / name / f"fig.{ext}" for name in ("a", "b"))
+    assert a.read_bytes() == b.read_bytes()
 
 
 def test_folders_of_a_job_array_merge_their_seeds(tmp_path):

@@ -220,7 +220,8 @@ def test_bad_out_paths_are_one_line(tmp_path, capsys):
      "configs.ours: low.batch_size must be an integer, got '8'"),
     (lambda c: c["configs"]["ours"]["top"].update(alpha=[0, "0.4", 0.7]),
      "configs.ours: top.alpha[1] must be a number, got '0.4'"),
-    (lambda c: c["configs"]["ours"].update(switch=1), "configs.ours: switch must be a string, got 1"),
+    (lambda c: c["configs"]["ours"].update(switch=1),
+     "configs.ours: switch must be a string, got 1"),
 ])
 def test_a_wrong_type_in_config_json_is_named(reference, tmp_path, capsys, edit, message):
   out = _copy(reference, tmp_path)
