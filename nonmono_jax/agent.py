@@ -16,9 +16,9 @@ in the phases of ``step``:
               the chooser's learner (Top PPO every 400)
     evaluation of Middle TD3 + Low TD3 every 10K steps -> S_E
 
-The numbers a variant may change (alpha, S_O, the S_E weight, rho, the goal noise, the
-learners' rates: ``hyper.py``) are read from ``hp``, the lane's ``Hyper``: ``step(state, t,
-hp)``; without it, the config's own, as constants. Every gate is a function of the global step
+The numbers a variant may change (the config fields declared ``traced``: alpha, S_O, the Top's
+two switches, rho, the goal noise, the learners' rates; ``numbers.py``) are read from ``hp``,
+the lane's ``Numbers``: ``step(state, t, hp)``, ``hp = numbers.of(config)``. Every gate is a function of the global step
 ``t``, which is not batched over seeds, so each stays a real ``lax.cond`` under ``vmap``
 (docs/spec.md, section 6); only per-env data (modes, explore periods) is batched. Metrics are
 ``metrics.Metric``s that declare their chunk reduction.
@@ -34,10 +34,11 @@ import jax.numpy as jp
 from flax import struct
 
 from envs.base import MazeEnv, MazeState
-from nonmono_jax import buffers, hierarchy, hyper, modes, td3
+from nonmono_jax import buffers, hierarchy, modes, td3
 from nonmono_jax import evaluate as evaluate_lib
 from nonmono_jax.config import AgentConfig
 from nonmono_jax.gates import gated
+from nonmono_jax.numbers import Numbers
 from nonmono_jax.low import Low, make_low
 from nonmono_jax.metrics import Metric, level
 from nonmono_jax.middle import Explorer, Middle, NoExplorer, Segment, make_middle
@@ -139,7 +140,7 @@ class EnvStep:
 
 @dataclasses.dataclass(frozen=True)
 class Agent:
-  """The agent's pure functions: ``init(key) -> SeedState`` and ``step(state, t)``."""
+  """The agent's pure functions: ``init(key) -> SeedState`` and ``step(state, t, hp)``."""
 
   config: AgentConfig
   env: MazeEnv
@@ -147,7 +148,7 @@ class Agent:
   middle: Middle
   chooser: modes.ModeChooser
   init: Callable[[jax.Array], SeedState]
-  step: Callable[..., tuple[SeedState, dict]]  # (state, t[, hp]) -> (state, metrics)
+  step: Callable[..., tuple[SeedState, dict]]  # (state, t, hp) -> (state, metrics)
   evaluate: Callable[..., tuple]  # (low params, middle params, key) -> S_E, distance, return,
   # unstable steps
 
@@ -223,7 +224,7 @@ def _clock(p: _Parts, t) -> Clock:
                episode_end=(t + 1) % p.env.episode_length == 0, segment_end=i == p.config.c - 1)
 
 
-def _act(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys, hp: hyper.Hyper):
+def _act(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys, hp: Numbers):
   """Low acts in every env and the envs step; the Low buffer, segments and horizons record it."""
   s = state.env.obs
   per_env = {"s": s, "goal": state.goal, "key": jax.random.split(keys.act, p.config.num_envs)}
@@ -266,7 +267,7 @@ def _reset(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys) -> SeedSta
   return jax.lax.cond(clock.episode_end, reset, lambda s: s, state)
 
 
-def _end_segment(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys, hp: hyper.Hyper):
+def _end_segment(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys, hp: Numbers):
   """A Middle decision: Middle transitions into the TD3 buffer and PPO rollout; the mode
   switch; the next goals."""
   t, warmup = clock.t, p.config.warmup_steps
@@ -293,7 +294,7 @@ def _end_segment(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys, hp: 
   return gated(clock.segment_end, end_segment, state)  # zeros where skipped
 
 
-def _updates(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys, hp: hyper.Hyper):
+def _updates(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys, hp: Numbers):
   """Learning after warm-up, each level on its own clock."""
   t, live = clock.t, clock.live
 
@@ -322,7 +323,7 @@ def _updates(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys, hp: hype
   return state.replace(chooser=chooser), {**metrics, **m}
 
 
-def _evaluation(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys, hp: hyper.Hyper):
+def _evaluation(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys, hp: Numbers):
   """Middle TD3 + Low TD3 without noise every ``eval_every`` steps: S_E (evaluate.py)."""
   ran = clock.live & ((clock.t + 1) % p.config.eval_every == 0)
 
@@ -335,7 +336,7 @@ def _evaluation(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys, hp: h
   return state, level("eval", m, ran)
 
 
-def _step(p: _Parts, state: SeedState, t, hp: hyper.Hyper):
+def _step(p: _Parts, state: SeedState, t, hp: Numbers):
   """One env step of every env of the seed, at global step ``t`` (unbatched), with the
   lane's numbers ``hp``."""
   keys, clock = StepKeys.split(state.key), _clock(p, t)
@@ -364,10 +365,6 @@ def make_agent(env, config: AgentConfig = AgentConfig()) -> Agent:
   evaluate = evaluate_lib.make_evaluate(env, config.c, low.td3.act, middle.policy,
                                         config.eval_episodes, config.eval_target_networks)
   p = _Parts(config=config, env=env, low=low, middle=middle, chooser=chooser, evaluate=evaluate)
-  own = hyper.of(config)
-
-  def step(state, t, hp: hyper.Hyper | None = None):
-    return _step(p, state, t, own if hp is None else hp)
-
   return Agent(config=config, env=env, low=low, middle=middle, chooser=chooser,
-               init=lambda key: _init(p, key), step=step, evaluate=evaluate)
+               init=lambda key: _init(p, key), step=lambda state, t, hp: _step(p, state, t, hp),
+               evaluate=evaluate)

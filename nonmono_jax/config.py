@@ -25,7 +25,8 @@ import dataclasses
 import typing
 from typing import Any, Mapping
 
-from nonmono_jax import hierarchy, homeostasis, ppo, td3, validation
+from nonmono_jax import hierarchy, homeostasis, numbers, ppo, td3, validation
+from nonmono_jax.numbers import traced
 
 SWITCHES = ("none", "top", "homeostasis")  # HIRO / ours / Ref:Uniform and Ref:PPO
 EXPLORE_MODES = ("ppo", "random")  # the explore mode of the homeostasis switch
@@ -62,13 +63,13 @@ class TopConfig:
   """The Top level: PPO over g_expl_mode in (TD3, PPO, RANDOM), one choice per ``horizon``."""
 
   horizon: int = 50  # Top horizon, env steps
-  alpha: tuple[float, float, float] = (0.0, 0.4, 0.7)  # R_final = R_m + alpha[m] R_m
-  s_o: tuple[float, float, float] = (0.6, 0.6, 0.6)  # done_m = S_O_m >= S_O[m]
-  s_o_start: float = 0.9  # S_O during the starting mode
+  alpha: tuple[float, float, float] = traced((0.0, 0.4, 0.7))  # R_final = R_m + alpha[m] R_m
+  s_o: tuple[float, float, float] = traced((0.6, 0.6, 0.6))  # done_m = S_O_m >= S_O[m]
+  s_o_start: float = traced(0.9)  # S_O during the starting mode
   starting_steps: int = 250_000  # after warm-up, the Top is forced to RANDOM for this long
   train_every: int = 400  # Top PPO trains on the train_every / horizon latest Top transitions
-  reward_mod: bool = True  # False: alpha = 0 (ablation)
-  loss_mod: bool = True  # False: no S_E term in the Top loss (ablation)
+  reward_mod: bool = traced(True)  # False: alpha = 0 (ablation; a 0/1 weight of alpha)
+  loss_mod: bool = traced(True)  # False: no S_E term in the Top loss (ablation; 0/1 weight)
   ppo: ppo.PPOConfig = ppo.PPOConfig(discrete=True)
 
   def __post_init__(self):
@@ -111,7 +112,7 @@ class AgentConfig:
   c: int = 10  # Middle horizon
   goal_range: tuple[float, float, float] = (10.0, 10.0, 0.5)
   warmup_steps: int = 100_000  # random low actions and goals, no updates
-  middle_goal_noise: float = 0.0  # Gaussian noise on TD3 goals: HIRO 1, ours 0
+  middle_goal_noise: float = traced(0.0)  # Gaussian noise on TD3 goals: HIRO 1, ours 0
   middle_ppo_every: int = 30  # Middle PPO trains on its latest middle_ppo_every / c transitions
   eval_every: int = 10_000  # S_E of Middle TD3 + Low TD3, every eval_every env steps
   eval_episodes: int = 50
@@ -333,3 +334,17 @@ def get(config, path: str):
 def differences(a, b) -> list[str]:
   """The dotted leaf fields in which two configs of one class differ."""
   return [p for p in leaf_paths(a) if get(a, p) != get(b, p)]
+
+
+def check_group(configs) -> AgentConfig:
+  """The one static key (``numbers.static_key``) of configs that run as lanes of one
+  program; a ValueError naming the fields where they differ."""
+  if not configs:
+    raise ValueError("a group needs at least one config")
+  key = numbers.static_key(configs[0])
+  for i, c in enumerate(configs[1:], 1):
+    other = numbers.static_key(c)
+    if other != key:
+      raise ValueError(f"variant {i} cannot share variant 0's program: they differ in "
+                       f"{', '.join(differences(key, other))} (not traced)")
+  return key

@@ -30,6 +30,8 @@ import jax
 import jax.numpy as jp
 from flax import struct
 
+from nonmono_jax.numbers import traced
+
 EPS = 1e-8  # floor of the standard deviation: x2bar is 0 at the first step and on a constant x
 MAX_Z = 50.0  # cap of the standardised excess, so exp never overflows to inf (inf/inf = NaN)
 HORIZON = 100.0  # tau's cap is HORIZON / rho: averages over ~100 expected switches
@@ -41,7 +43,7 @@ class HomeostasisConfig:
   """The informed trigger's options (``switch.py``): the paper's Ref code decides at Middle
   decisions, so ``k`` and ``gamma`` are per Middle segment of c env steps."""
 
-  rho: float = 0.01  # target exploit -> explore switch rate per trigger check
+  rho: float = traced(0.01)  # target exploit -> explore switch rate per trigger check
   explore_steps: int = 100  # length of an explore period in env steps: intra(100)
   gamma: float = 0.99  # discount of the value promise, per Middle segment
   k: int = 30  # lookback of the value promise discrepancy, in Middle segments

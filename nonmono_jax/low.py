@@ -17,6 +17,7 @@ import jax
 import jax.numpy as jp
 
 from nonmono_jax import buffers, hierarchy, learning, td3
+from nonmono_jax.numbers import Numbers
 
 
 @dataclasses.dataclass(frozen=True)
@@ -34,8 +35,9 @@ def make_low(obs_size: int, action_size: int, action_limit, config: td3.TD3Confi
   learner = td3.make_td3(obs_size, k, action_size, action_limit, config)
   lim = jp.broadcast_to(jp.asarray(action_limit, jp.float32), (action_size,))
 
-  def act(params, obs, goal, key, warm, hp: td3.TD3Hyper = learner.hyper):
-    """The behaviour action: uniform during warm-up, else pi_L plus Gaussian noise."""
+  def act(params, obs, goal, key, warm, hp: Numbers):
+    """The behaviour action: uniform during warm-up, else pi_L plus Gaussian noise (std
+    ``hp.expl_noise``)."""
     k1, k2 = jax.random.split(key)
     random = jax.random.uniform(k1, (action_size,), minval=-lim, maxval=lim)
     return jp.where(warm, random, learner.explore(params, obs, goal, k2, hp.expl_noise))
@@ -47,8 +49,7 @@ def make_low(obs_size: int, action_size: int, action_limit, config: td3.TD3Confi
                           next_context=g_next,
                           done=hierarchy.low_done(g_next if done_goal == "next" else g))
 
-  def update(state: td3.TD3State, buffer: buffers.ReplayBuffer, key, t,
-             hp: td3.TD3Hyper = learner.hyper):
+  def update(state: td3.TD3State, buffer: buffers.ReplayBuffer, key, t, hp: Numbers):
     """``updates`` TD3 updates on batches from the Low buffer; metrics of the last."""
 
     def one(state, i):

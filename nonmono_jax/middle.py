@@ -33,6 +33,7 @@ from flax import struct
 
 from nonmono_jax import buffers, hierarchy, learning, ppo, relabel, td3
 from nonmono_jax.config import AgentConfig
+from nonmono_jax.numbers import Numbers
 
 
 @struct.dataclass
@@ -105,11 +106,12 @@ class PPOExplorer:
     rollout = jax.tree.map(lambda r, x: r.at[:, slot].set(x), state.rollout, steps)
     return state.replace(rollout=rollout)
 
-  def update(self, state: Explorer, t, hp: ppo.PPOHyper | None = None):
-    """One update on the rollout, at the std of step t (reported as ``std``)."""
+  def update(self, state: Explorer, t, hp: Numbers):
+    """One update on the rollout, at the std of step t (reported as ``std``); ``hp`` the
+    Middle PPO's numbers."""
     std = self.std(t)
-    new, m = self.ppo.update(state.learner, state.rollout, std, None,
-                             self.ppo.hyper if hp is None else hp)
+    weights = jp.ones(state.rollout.reward.shape, jp.float32)
+    new, m = self.ppo.update(state.learner, state.rollout, std, weights, hp)
     return state.replace(learner=new), {**m, "std": std}
 
 
@@ -137,7 +139,7 @@ class Idle:
   def store(self, state, t, steps):
     return state
 
-  def update(self, state, t, hp=None):
+  def update(self, state, t, hp: Numbers):
     return state, {}
 
 
@@ -175,9 +177,9 @@ def make_middle(obs_size: int, action_size: int, target, config: AgentConfig,
       return jax.random.uniform(key, (k,), minval=-goal_range, maxval=goal_range)
     return jp.clip(jax.random.normal(key, (k,)) * goal_range, -goal_range, goal_range)
 
-  def goal(td3_params, ppo_params, obs, mode, key, warm, t, noise=config.middle_goal_noise):
+  def goal(td3_params, ppo_params, obs, mode, key, warm, t, noise):
     """(goal, PPO action to store, its log pi_PPO) from the sub-policy ``mode``; ``noise``
-    the std on TD3 goals (traced in a lane, ``hyper.Hyper.middle_goal_noise``).
+    the std on TD3 goals (the lane's ``middle_goal_noise``).
 
     Random goals in warm-up. The stored PPO action is PPO's own sample ("own", the paper's
     code) or the executed goal ("executed").
@@ -249,9 +251,8 @@ def make_middle(obs_size: int, action_size: int, target, config: AgentConfig,
     q = learner.q_values(td3_params.target_critic, obs, tgt, learner.act(targets, obs, tgt))
     return q.min(axis=0)
 
-  def td3_update(state: td3.TD3State, buffer, low_params, key, t,
-                 hp: td3.TD3Hyper = learner.hyper):
-    """``middle_updates`` TD3 updates; with ``"sample"`` relabelling each batch is relabelled
+  def td3_update(state: td3.TD3State, buffer, low_params, key, t, hp: Numbers):
+    """``middle_updates`` TD3 updates (``hp`` the Middle TD3's numbers); with ``"sample"`` relabelling each batch is relabelled
     under the current Low actor (``low_params``) first."""
     cfg = config.middle
 

@@ -15,8 +15,8 @@ A chooser owns its state (``SeedState.chooser``: ``Fixed``, ``TopState`` or the 
     decide(state, mode, decision, keys, hp) -> (state, mode, metrics)  at a Middle decision
     update(state, t, live, s_e, hp) -> (state, metrics)          its learner, on its own clock
 
-``hp`` is the lane's ``hyper.Hyper`` (alpha, S_O and the S_E weight of the Top, rho of the
-trigger): numbers read at run time, so variants of one program differ in them.
+``hp`` is the lane's ``numbers.Numbers`` (the Top's alpha, S_O and its two switches, the
+trigger's rho): numbers read at run time, so variants of one program differ in them.
 
 ``keys`` are the agent's named keys (``agent.InitKeys`` / ``agent.StepKeys``): the Top uses
 ``top`` and ``horizon``, the trigger ``switch``. The starting mode runs after warm-up until
@@ -186,7 +186,7 @@ def make_trigger_chooser(config: AgentConfig, value: Callable, num_envs: int) ->
 
     def deciding(trigger):
       return jax.vmap(switch.decide, in_axes=(0, 0, 0, 0, None))(
-          trigger, v, d.reward, jax.random.split(keys.switch, E), hp.rho)
+          trigger, v, d.reward, jax.random.split(keys.switch, E), hp.homeostasis.rho)
 
     # The window of the first exploit period starts at s_{live_from}.
     trigger, switched = jax.lax.cond(d.t + 1 <= live_from, starting, deciding, trigger)

@@ -9,7 +9,7 @@
 
 A plan's configs are its variants, by name: a method (``ours``), or a method with sweep values
 (``ours+top.alpha=0,0.2,0.35``; ``variants`` keeps each one's method and values). Variants
-whose configs share a static key (``hyper.static_key``) are one group: one program of lanes.
+whose configs share a static key (``numbers.static_key``) are one group: one program of lanes.
 
 A new run is built from the presets (``methods``) and dotted overrides; a saved one is read
 back from its ``config.json`` (``config.config_from_dict``), not rebuilt: a preset default
@@ -26,6 +26,7 @@ import datetime
 import itertools
 import os
 import platform
+import subprocess
 import sys
 from importlib import metadata
 
@@ -33,7 +34,7 @@ import jax
 
 import envs
 from envs import ant_maze
-from nonmono_jax import hyper, io, methods, validation
+from nonmono_jax import io, methods, numbers, validation
 from nonmono_jax.config import AgentConfig, config_from_dict, differences, flatten, get
 from nonmono_jax.config import missing_fields, override
 
@@ -72,7 +73,7 @@ class Plan:
       return [[name] for name in self.configs]
     by_key: dict = {}  # static key -> its variants (dicts keep the plan's order)
     for name, config in self.configs.items():
-      by_key.setdefault(hyper.static_key(config), []).append(name)
+      by_key.setdefault(numbers.static_key(config), []).append(name)
     return list(by_key.values())
 
 
@@ -258,7 +259,7 @@ def to_json(plan: Plan) -> dict:
           "configs": {m: io.to_jsonable(c) for m, c in plan.configs.items()},
           "variants": io.to_jsonable(plan.variants), "grouped": plan.grouped,
           "physics": plan.physics,
-          "versions": _versions(), "python": platform.python_version(),
+          "versions": _versions(), "code": code_version(), "python": platform.python_version(),
           "device": str(jax.devices()[0].device_kind), "platform": jax.default_backend(),
           "device_count": jax.device_count(), "processes": jax.process_count(),
           "host": host(), "command": " ".join(sys.argv)}
@@ -296,6 +297,23 @@ def host_differs(payload) -> str | None:
   changed = [f"{k} {saved.get(k)!r} (here {now[k]!r})" for k in now if saved.get(k) != now[k]
              and k != "cores"]
   return "; ".join(changed) or None
+
+
+def code_version() -> dict:
+  """The commit of the code that made the run, where it runs from a git checkout: ``{"commit":
+  sha, "dirty": uncommitted changes to tracked files}``; ``{}`` elsewhere (an installed wheel).
+  Later code may round a run differently: the commit is where it reproduces bit for bit."""
+  here = os.path.dirname(os.path.abspath(__file__))
+  git = lambda *args: subprocess.run(["git", "-C", here, *args], capture_output=True,
+                                     text=True, timeout=10)
+  try:
+    head = git("rev-parse", "HEAD")
+    if head.returncode:
+      return {}
+    dirty = git("status", "--porcelain", "--untracked-files=no").stdout.strip() != ""
+  except (OSError, subprocess.SubprocessError):
+    return {}
+  return {"commit": head.stdout.strip(), "dirty": dirty}
 
 
 def _versions() -> dict:

@@ -43,6 +43,7 @@ import optax
 from flax import struct
 
 from nonmono_jax import learning, networks
+from nonmono_jax.numbers import Numbers, traced
 
 _RETURN_EPS = 1e-7  # the port's normaliser epsilon
 _LOG_2PI_E = math.log(2.0 * math.pi * math.e)
@@ -54,13 +55,13 @@ class PPOConfig:
   """PPO hyper-parameters; the defaults are the paper's (and the port's) numbers."""
 
   hidden: Sequence[int] = (300, 300)
-  lr_actor: float = 3e-4
-  lr_critic: float = 1e-3
-  gamma: float = 0.99
-  clip: float = 0.2
+  lr_actor: float = traced(3e-4)
+  lr_critic: float = traced(1e-3)
+  gamma: float = traced(0.99)
+  clip: float = traced(0.2)
   k_epochs: int = 10
-  entropy_coef: float = 0.01
-  value_coef: float = 0.5
+  entropy_coef: float = traced(0.01)
+  value_coef: float = traced(0.5)
   discrete: bool = False
   std_init: float = 0.6
   std_decay: float = 0.05
@@ -105,27 +106,6 @@ class PPOConfig:
 
 
 @struct.dataclass
-class PPOHyper:
-  """The numbers of a PPO learner (traced in a lane: ``hyper.Hyper``)."""
-
-  lr_actor: jax.Array
-  lr_critic: jax.Array
-  gamma: jax.Array
-  clip: jax.Array
-  entropy_coef: jax.Array
-  value_coef: jax.Array
-
-  @classmethod
-  def of(cls, config: PPOConfig) -> "PPOHyper":
-    """The config's numbers as Python floats: compiled in as they were before they could be
-    traced (``hyper.stack`` makes float32 lanes of them)."""
-    return cls(**{f: float(getattr(config, f)) for f in TRACED})
-
-
-TRACED = tuple(f.name for f in dataclasses.fields(PPOHyper))
-
-
-@struct.dataclass
 class PPOState:
   """Learner state: ``params = {'actor': ..., 'critic': ...}`` and Adam's state."""
 
@@ -155,7 +135,6 @@ class PPO:
   obs_size: int
   action_size: int
   action_scale: jax.Array
-  hyper: PPOHyper  # the config's numbers, used where a lane's are not given
   init: Callable[[jax.Array], PPOState]
   act: Callable[..., tuple[jax.Array, jax.Array]]  # (params, obs, key, std) -> (a, logp)
   mode: Callable[..., jax.Array]  # (params, obs) -> greedy action
@@ -280,9 +259,7 @@ def make_ppo(obs_size: int, action_size: int, config: PPOConfig = PPOConfig(),
   def value(params, obs):
     return critic.apply(params["critic"], obs)[..., 0]
 
-  own = PPOHyper.of(config)  # the numbers used where a lane's are not given
-
-  def per_sample_loss(params, batch: Rollout, std, hp: PPOHyper = own):
+  def per_sample_loss(params, batch: Rollout, std, hp: Numbers):
     returns = monte_carlo_returns(batch.reward, batch.done, hp.gamma)
     logp = log_prob(params, batch.obs, batch.action, std)
     v = value(params, batch.obs)
@@ -302,14 +279,14 @@ def make_ppo(obs_size: int, action_size: int, config: PPOConfig = PPOConfig(),
     }
     return loss, metrics
 
-  def loss(params, batch: Rollout, std, loss_weights, hp: PPOHyper = own):
+  def loss(params, batch: Rollout, std, loss_weights, hp: Numbers):
     per_sample, metrics = per_sample_loss(params, batch, std, hp)
     total = jp.mean(loss_weights * per_sample)
     return total, {"loss": total, **metrics}
 
-  def update(state: PPOState, batch: Rollout, std, loss_weights=None, hp: PPOHyper = own):
-    if loss_weights is None:
-      loss_weights = jp.ones(batch.reward.shape, jp.float32)
+  def update(state: PPOState, batch: Rollout, std, loss_weights, hp: Numbers):
+    """K epochs on the rollout, each sample's loss times its ``loss_weights``; ``hp`` the
+    lane's numbers (``numbers.of(config)``: rates, gamma, clip, coefficients)."""
     rates = {"actor": hp.lr_actor, "critic": hp.lr_critic}
 
     def epoch(carry, _):
@@ -323,6 +300,6 @@ def make_ppo(obs_size: int, action_size: int, config: PPOConfig = PPOConfig(),
     return state.replace(params=params, opt_state=opt_state), metrics
 
   return PPO(config=config, obs_size=obs_size, action_size=action_size,
-             action_scale=action_scale, hyper=own, init=init, act=act, mode=mode, log_prob=log_prob,
+             action_scale=action_scale, init=init, act=act, mode=mode, log_prob=log_prob,
              entropy=entropy, value=value, per_sample_loss=per_sample_loss, loss=loss,
              update=update)

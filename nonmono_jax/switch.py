@@ -110,7 +110,7 @@ def make_informed_switch(config: homeostasis.HomeostasisConfig, explore_mode: in
 
   def decide(state: TriggerState, v, reward, key, rho=config.rho):
     """At a Middle decision: V(s) of the new segment's start, R_M of the finished segment;
-    ``rho`` the target rate (traced in a lane, ``hyper.Hyper.rho``).
+    ``rho`` the target rate (a lane's number: ``homeostasis.rho``).
 
     Returns the new state (``mode`` gives the next segment's mode) and whether it switched
     to explore.

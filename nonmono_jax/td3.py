@@ -27,6 +27,7 @@ import optax
 from flax import struct
 
 from nonmono_jax import learning, networks
+from nonmono_jax.numbers import Numbers, traced
 
 
 @dataclasses.dataclass(frozen=True)
@@ -34,15 +35,15 @@ class TD3Config:
   """TD3 hyperparameters; defaults are the paper's (docs/spec.md, section 2; both levels)."""
 
   hidden: Sequence[int] = (300, 300)
-  lr_actor: float = 1e-4
-  lr_critic: float = 1e-3
-  gamma: float = 0.99
-  tau: float = 5e-3
+  lr_actor: float = traced(1e-4)
+  lr_critic: float = traced(1e-3)
+  gamma: float = traced(0.99)
+  tau: float = traced(5e-3)
   batch_size: int = 100
-  policy_noise: float = 0.2  # target smoothing noise std (absolute, as the HIRO port)
-  noise_clip: float = 0.5
+  policy_noise: float = traced(0.2)  # target smoothing noise std (absolute, as the HIRO port)
+  noise_clip: float = traced(0.5)
   policy_delay: int = 1  # the paper's code: policy_freq = 1 (TD3's paper: 2)
-  expl_noise: float = 1.0  # behaviour noise std before clipping (Low: N(0, 1) on torques)
+  expl_noise: float = traced(1.0)  # behaviour noise std before clipping (Low: N(0, 1) on torques)
   buffer_size: int = 200_000  # a ring; the run presets size it to the run (never evicts)
   target_smoothing: bool = True
   init: str = "lecun"  # networks.INITS: "torch" is the paper's code (PyTorch's nn.Linear default)
@@ -62,28 +63,6 @@ class TD3Config:
       raise ValueError(f"hidden must be positive layer sizes, got {self.hidden}")
     if self.init not in networks.INITS:
       raise ValueError(f"init must be one of {', '.join(networks.INITS)}, got {self.init!r}")
-
-
-@struct.dataclass
-class TD3Hyper:
-  """The numbers of a TD3 learner (traced in a lane: ``hyper.Hyper``)."""
-
-  lr_actor: jax.Array
-  lr_critic: jax.Array
-  gamma: jax.Array
-  tau: jax.Array
-  policy_noise: jax.Array
-  noise_clip: jax.Array
-  expl_noise: jax.Array
-
-  @classmethod
-  def of(cls, config: TD3Config) -> "TD3Hyper":
-    """The config's numbers as Python floats: compiled in as they were before they could be
-    traced (``hyper.stack`` makes float32 lanes of them)."""
-    return cls(**{f: float(getattr(config, f)) for f in TRACED})
-
-
-TRACED = tuple(f.name for f in dataclasses.fields(TD3Hyper))
 
 
 @struct.dataclass
@@ -130,7 +109,6 @@ class TD3:
 
   config: TD3Config
   action_scale: jax.Array
-  hyper: TD3Hyper  # the config's numbers, used where a lane's are not given
   init: Callable[[jax.Array], TD3State]
   act: Callable[..., jax.Array]
   explore: Callable[..., jax.Array]
@@ -150,7 +128,6 @@ def make_td3(obs_size: int, context_size: int, action_size: int, action_scale,
                                  activation=nn.relu, init=config.init)
   actor_opt = optax.adam(1.0)  # the learning rates scale the updates (learning.gradient_step)
   critic_opt = optax.adam(1.0)
-  own = TD3Hyper.of(config)  # the numbers used where a lane's are not given
 
   def pi(actor_params, obs, context):
     return scale * actor_net.apply(actor_params, obs, context)
@@ -170,11 +147,11 @@ def make_td3(obs_size: int, context_size: int, action_size: int, action_scale,
   def act(params: TD3Params, obs, context):
     return pi(params.actor, obs, context)
 
-  def explore(params: TD3Params, obs, context, key, noise_std=own.expl_noise):
+  def explore(params: TD3Params, obs, context, key, noise_std):
     a = pi(params.actor, obs, context)
     return jp.clip(a + noise_std * jax.random.normal(key, a.shape), -scale, scale)
 
-  def critic_loss(critic_params, params: TD3Params, batch: Transition, key, hp=own):
+  def critic_loss(critic_params, params: TD3Params, batch: Transition, key, hp: Numbers):
     a_next = pi(params.target_actor, batch.next_obs, batch.next_context)
     if config.target_smoothing:
       noise = jp.clip(hp.policy_noise * jax.random.normal(key, a_next.shape),
@@ -193,9 +170,9 @@ def make_td3(obs_size: int, context_size: int, action_size: int, action_scale,
     loss = -jp.mean(q1)
     return loss, {"actor_loss": loss}
 
-  def update(state: TD3State, batch: Transition, key, update_actor, hp: TD3Hyper = own):
+  def update(state: TD3State, batch: Transition, key, update_actor, hp: Numbers):
     """One critic step; the actor step and Polyak targets when ``update_actor``; ``hp`` the
-    numbers (a lane's, traced, or the config's).
+    lane's numbers (``numbers.of(config)``: rates, gamma, tau, noises).
 
     ``update_actor`` should be unbatched (from the trainer's step counter) so that under
     ``vmap`` over seeds the ``lax.cond`` stays a branch rather than a select.
@@ -220,5 +197,5 @@ def make_td3(obs_size: int, context_size: int, action_size: int, action_scale,
     state, a_loss = jax.lax.cond(update_actor, actor_step, skip, state)
     return state, {**cm, "actor_loss": a_loss}
 
-  return TD3(config=config, action_scale=scale, hyper=own, init=init, act=act, explore=explore,
+  return TD3(config=config, action_scale=scale, init=init, act=act, explore=explore,
              q_values=q_values, critic_loss=critic_loss, actor_loss=actor_loss, update=update)

@@ -26,7 +26,8 @@ from flax import struct
 
 from nonmono_jax import buffers, hierarchy, ppo
 from nonmono_jax.config import TopConfig
-from nonmono_jax.hyper import TopHyper
+from nonmono_jax import numbers
+from nonmono_jax.numbers import Numbers
 
 
 @struct.dataclass
@@ -56,7 +57,6 @@ def make_top(obs_size: int, target, config: TopConfig,
   k = hierarchy.GOAL_SIZE
   target = jp.asarray(target, jp.float32)
   policy = ppo.make_ppo(obs_size + k, len(hierarchy.MODES), config.ppo)
-  own = TopHyper.of(config)  # the numbers used where a lane's are not given
   ends_returns = 0.0 if returns_cross_episodes else 1.0
 
   def start(params, obs, key, forced):
@@ -72,12 +72,13 @@ def make_top(obs_size: int, target, config: TopConfig,
     return h.replace(reward=h.reward + reward, done_count=h.done_count + success,
                      count=h.count + 1)
 
-  def close(h: Horizon, starting, episode_end, hp: TopHyper = own):
-    """The Top transition of a finished horizon (``starting``: the starting mode's S_O)."""
+  def close(h: Horizon, starting, episode_end, hp: Numbers):
+    """The Top transition of a finished horizon (``starting``: the starting mode's S_O);
+    ``hp`` the Top's numbers (alpha, its switch ``reward_mod``: 0 or 1, S_O)."""
     s_o_m = hierarchy.success_ratio(h.done_count, h.count)
     s_o_start = jp.broadcast_to(jp.asarray(hp.s_o_start, jp.float32), jp.shape(hp.s_o))
     done_m = hierarchy.top_done(s_o_m, jp.where(starting, s_o_start, hp.s_o), h.mode)
-    r_final = hierarchy.modified_reward(h.reward, hp.alpha, h.mode)
+    r_final = hierarchy.modified_reward(h.reward, hp.reward_mod * hp.alpha, h.mode)
     step = ppo.Rollout(obs=h.obs, action=h.mode, log_prob=h.log_prob, reward=r_final,
                        done=jp.maximum(done_m, ends_returns * jp.asarray(episode_end,
                                                                         jp.float32)))
@@ -88,13 +89,13 @@ def make_top(obs_size: int, target, config: TopConfig,
     h = Horizon(obs=jax.ShapeDtypeStruct((obs_size + k,), jp.float32),
                 mode=jax.ShapeDtypeStruct((), jp.int32), log_prob=scalar, reward=scalar,
                 done_count=scalar, count=scalar)
-    return buffers.template(lambda h: close(h, False, False)[0], h,
+    return buffers.template(lambda h: close(h, False, False, numbers.of(config))[0], h,
                             lead=(config.rollout_length,))
 
-  def update(state: ppo.PPOState, rollout: ppo.Rollout, s_e, hp: TopHyper = own):
-    """Top PPO on the rollout, its loss weights 1 -+ w S_E (w = 0 without the loss
-    modification: weights of exactly 1)."""
-    weights = ppo.top_loss_weights(rollout.action, hp.s_e_weight * s_e, hierarchy.TD3)
+  def update(state: ppo.PPOState, rollout: ppo.Rollout, s_e, hp: Numbers):
+    """Top PPO on the rollout, its loss weights 1 -+ w S_E (w = ``hp.loss_mod``: 1 with the
+    loss modification, 0 without: weights of exactly 1)."""
+    weights = ppo.top_loss_weights(rollout.action, hp.loss_mod * s_e, hierarchy.TD3)
     return policy.update(state, rollout, None, weights, hp.ppo)
 
   return Top(ppo=policy, start=start, accumulate=accumulate, close=close,

@@ -19,19 +19,18 @@ is in the reduced dict.
 ``init``, a previous ``chunk`` or a checkpoint, and do not reuse them after the call.
 
 Variants as lanes (``make_group_trainer``): configs that share one static key
-(``hyper.static_key``: they differ only in traced numbers, e.g. ours and its three ablations,
-or a sweep of alpha) run as one program of V x S lanes, variant-major (lane v * S + i is seed i
-of variant v), each lane reading its own ``hyper.Hyper``. Lane (v, i) starts from the same key
-as seed i of variant v run alone, so it computes the same run, up to float rounding where a
-number is an argument instead of a compile-time constant.
+(``numbers.static_key``: they differ only in fields declared ``traced``, e.g. ours and its
+three ablations, or a sweep of alpha) run as one program of V x S lanes, variant-major (lane
+v * S + i is seed i of variant v), each lane reading its own ``numbers.Numbers``. Lane (v, i)
+starts from the same key as seed i of variant v run alone, and a config run alone is a group
+of one (its numbers are arguments too, never compile-time constants), so a lane computes bit
+for bit the run of its variant alone.
 
     trainer = make_group_trainer(env, [ours, ours_no_mods], num_seeds=4, chunk_steps=2000)
     states = trainer.init(key)                      # 8 lanes
     states, metrics = trainer.chunk(states, 0)      # metrics["success"].shape == (8,)
     trainer.lanes(metrics, 1)                       # variant 1's seeds: (4,)
 
-``make_trainer`` (one config) embeds its numbers as constants: the program of a single
-variant is the one it was before variants existed.
 
 With several devices the lane axis is split across them (``jax.shard_map`` over a 1-D mesh
 ``seeds``): each device runs its own lanes, with no communication; the lane count must be a
@@ -50,8 +49,9 @@ import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec as P
 
 from nonmono_jax import agent as agent_lib
-from nonmono_jax import hyper as hyper_lib
+from nonmono_jax import numbers
 from nonmono_jax import metrics as metrics_lib
+from nonmono_jax.config import check_group
 
 
 @dataclasses.dataclass(frozen=True)
@@ -64,6 +64,8 @@ class Trainer:
   chunk: Callable
   evaluate: Callable
   variants: int = 1  # lanes = variants x num_seeds, variant-major
+  # the jitted chunk(states, t0, hp) that ``chunk`` calls with the lanes' Numbers
+  chunk_program: Callable | None = None
   # XLA's memory count of one device's compiled chunk: {"argument", "output", "temp",
   # "alias", "total"} bytes (compiles it; benchmarks.common.program_bytes)
   program_bytes: Callable[[], dict] | None = None
@@ -89,33 +91,32 @@ def reduce_chunk(metrics: dict) -> dict:
 def make_trainer(env, config: agent_lib.AgentConfig, num_seeds: int, chunk_steps: int,
                  devices: Sequence[jax.Device] | None = None,
                  compiler_options: Mapping[str, Any] | None = None) -> Trainer:
-  """Jitted ``init(key)``, ``chunk(states, t0)`` and ``evaluate(states, key)`` of one config,
-  its numbers compiled in as constants.
+  """Jitted ``init(key)``, ``chunk(states, t0)`` and ``evaluate(states, key)`` of one config:
+  the group trainer of that one variant.
 
   ``compiler_options`` go to XLA with each program (``jax.jit``): e.g.
   ``{"xla_backend_optimization_level": 0}`` (LLVM -O0) compiles an MJX AntPush step in half
   the time on a CPU, for smoke tests that run a few steps; the point preset trains 2.5x slower
   at -O0.
   """
-  return _make(env, config, None, num_seeds, chunk_steps, devices, compiler_options)
+  return make_group_trainer(env, [config], num_seeds, chunk_steps, devices, compiler_options)
 
 
 def make_group_trainer(env, configs: Sequence[agent_lib.AgentConfig], num_seeds: int,
                        chunk_steps: int, devices: Sequence[jax.Device] | None = None,
                        compiler_options: Mapping[str, Any] | None = None) -> Trainer:
-  """One program for ``configs`` (equal ``hyper.static_key``s, else a ValueError naming the
-  fields): ``len(configs) * num_seeds`` lanes, each with its variant's ``Hyper``."""
-  key = hyper_lib.check_group(list(configs))
+  """One program for ``configs`` (equal ``numbers.static_key``s, else a ValueError naming the
+  fields): ``len(configs) * num_seeds`` lanes, each with its variant's ``Numbers``."""
+  key = check_group(list(configs))
   per_lane = jax.tree.map(lambda x: np.repeat(x, num_seeds, axis=0),
-                          hyper_lib.stack(list(configs)))
+                          numbers.stack(list(configs)))
   return _make(env, key, per_lane, num_seeds, chunk_steps, devices, compiler_options,
                variants=len(configs))
 
 
 def _make(env, config, per_lane, num_seeds, chunk_steps, devices, compiler_options,
-          variants=1) -> Trainer:
-  """The trainer of ``variants`` x ``num_seeds`` lanes; ``per_lane``: each lane's Hyper, or
-  None for the config's own as constants."""
+          variants) -> Trainer:
+  """The trainer of ``variants`` x ``num_seeds`` lanes, lane i reading ``per_lane``[i]."""
   for name, v in (("num_seeds", num_seeds), ("chunk_steps", chunk_steps)):
     if v < 1:
       raise ValueError(f"{name} must be >= 1, got {v}")
@@ -129,10 +130,7 @@ def _make(env, config, per_lane, num_seeds, chunk_steps, devices, compiler_optio
   seeds = NamedSharding(mesh, P("seeds"))
 
   def local_chunk(states, t0, hp):
-    if hp is None:  # the config's own numbers, constants
-      body = lambda st, t: jax.vmap(agent.step, in_axes=(0, None))(st, t)
-    else:  # each lane's
-      body = lambda st, t: jax.vmap(agent.step, in_axes=(0, None, 0))(st, t, hp)
+    body = lambda st, t: jax.vmap(agent.step, in_axes=(0, None, 0))(st, t, hp)
     states, metrics = jax.lax.scan(body, states, t0 + jp.arange(chunk_steps))
     return states, reduce_chunk(metrics)
 
@@ -160,16 +158,11 @@ def _make(env, config, per_lane, num_seeds, chunk_steps, devices, compiler_optio
   # out_shardings: XLA would return zero-size leaves (an MJX model's empty mocap_pos, PointMaze's
   # blocks) replicated; kept split by lane, a chunk's output is its next input's sharding and the
   # chunk compiles once (not twice) and runs ahead-of-time compiled
-  if per_lane is None:
-    chunk = jit(shard(lambda st, t0: local_chunk(st, t0, None), (P("seeds"), P())),
-                donate_argnums=0, out_shardings=seeds)
-    lower = lambda states: chunk.lower(states, 0)
-  else:
-    lanes_chunk = jit(shard(local_chunk, (P("seeds"), P(), P("seeds"))), donate_argnums=0,
-                      out_shardings=seeds)
-    hp = jax.device_put(per_lane, seeds)
-    chunk = lambda states, t0: lanes_chunk(states, t0, hp)
-    lower = lambda states: lanes_chunk.lower(states, 0, hp)
+  lanes_chunk = jit(shard(local_chunk, (P("seeds"), P(), P("seeds"))), donate_argnums=0,
+                    out_shardings=seeds)
+  hp = jax.device_put(per_lane, seeds)
+  chunk = lambda states, t0: lanes_chunk(states, t0, hp)
+  lower = lambda states: lanes_chunk.lower(states, 0, hp)
 
   def program_bytes():
     m = lower(jax.eval_shape(init, jax.random.PRNGKey(0))).compile().memory_analysis()
@@ -180,4 +173,4 @@ def _make(env, config, per_lane, num_seeds, chunk_steps, devices, compiler_optio
       agent=agent, num_seeds=num_seeds, chunk_steps=chunk_steps, mesh=mesh,
       init=init, chunk=chunk,
       evaluate=jit(shard(local_evaluate, (P("seeds"), P()))), variants=variants,
-      program_bytes=program_bytes)
+      chunk_program=lanes_chunk, program_bytes=program_bytes)

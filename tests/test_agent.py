@@ -11,7 +11,7 @@ import pytest
 
 import envs
 from nonmono_jax import agent as agent_lib
-from nonmono_jax import hierarchy, homeostasis, methods, modes, ppo, td3, train
+from nonmono_jax import hierarchy, homeostasis, methods, modes, numbers, ppo, td3, train
 from nonmono_jax import config as config_lib
 from nonmono_jax.config import AgentConfig, TopConfig
 from nonmono_jax.switch import TriggerState
@@ -47,13 +47,13 @@ class Run:
     self.env = envs.make("PointPush", episode_length=EPISODE)
     self.config = small_config(method)
     self.agent = agent_lib.make_agent(self.env, self.config)
-    ag = self.agent
+    ag, hp = self.agent, numbers.of(self.config)
 
     def body(st, t):
       mode = st.mode
       trigger = isinstance(st.chooser, TriggerState)
       left = st.chooser.explore_left if trigger else jp.zeros_like(mode)
-      st, m = jax.vmap(ag.step, in_axes=(0, None))(st, t)
+      st, m = jax.vmap(ag.step, in_axes=(0, None, None))(st, t, hp)
       return st, ({k: v.value for k, v in m.items()}, mode, left)
 
     @jax.jit
@@ -229,11 +229,14 @@ def test_gates_stay_branches_under_vmap(runs):
   """Each horizon gate is a ``cond`` in the vmapped step's jaxpr, not a select of both sides."""
   r = runs("ours")
   states = jax.vmap(r.agent.init)(r.keys)
-  jaxpr = str(jax.make_jaxpr(jax.vmap(r.agent.step, in_axes=(0, None)))(states, jp.array(0)))
+  hp = numbers.of(r.config)
+  jaxpr = str(jax.make_jaxpr(jax.vmap(r.agent.step, in_axes=(0, None, None)))(
+      states, jp.array(0), hp))
   # episode reset, segment end, Top horizon, Low, Middle, Middle PPO, Top PPO, evaluation, and
   # the delayed TD3 actors
   assert jaxpr.count("cond[") >= 10, jaxpr.count("cond[")
-  batched = str(jax.make_jaxpr(jax.vmap(r.agent.step))(states, jp.zeros(SEEDS, jp.int32)))
+  batched = str(jax.make_jaxpr(jax.vmap(r.agent.step, in_axes=(0, 0, None)))(
+      states, jp.zeros(SEEDS, jp.int32), hp))
   assert batched.count("cond[") < jaxpr.count("cond[")  # a batched clock would lose them
 
 

@@ -15,7 +15,7 @@ import pytest
 import envs
 from nonmono_jax import buffers, evaluate, hierarchy, low as low_lib, methods
 from nonmono_jax import middle as middle_lib
-from nonmono_jax import relabel, td3
+from nonmono_jax import numbers, relabel, td3
 
 OBS, ACT = 7, 2
 SMALL = td3.TD3Config(hidden=(8,), batch_size=4, buffer_size=64)
@@ -51,7 +51,7 @@ def test_policy_delay_one_updates_the_actor_on_every_update():
   buffer = buffers.add(buffer, tr)
   update = jax.jit(low.update)
   for t in range(3):
-    new, m = update(state, buffer, jax.random.PRNGKey(t), t)
+    new, m = update(state, buffer, jax.random.PRNGKey(t), t, numbers.of(SMALL))
     assert m["actor_loss"] != 0
     assert not np.allclose(jax.tree.leaves(new.params.actor)[0],
                            jax.tree.leaves(state.params.actor)[0])
@@ -109,7 +109,8 @@ def test_middle_ppo_stores_its_own_sample_in_other_modes(sample):
   ppo_params = mid.explorer.ppo.init(jax.random.PRNGKey(1)).params
   obs, key, t = jp.ones(OBS), jax.random.PRNGKey(2), 0
   for mode in (hierarchy.TD3, hierarchy.RANDOM, hierarchy.PPO):
-    g, stored, logp = mid.goal(td3_params, ppo_params, obs, mode, key, False, t)
+    g, stored, logp = mid.goal(td3_params, ppo_params, obs, mode, key, False, t,
+                              config.middle_goal_noise)
     x = jp.concatenate([obs, jp.array([0.0, 9.5, 0.5])])
     sampled, sampled_logp = mid.explorer.ppo.act(ppo_params, x, jax.random.split(key, 3)[2],
                                         mid.explorer.std(t))

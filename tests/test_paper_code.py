@@ -4,6 +4,8 @@ step 0, the Low's done on the current goal, training scored on the state before 
 an episode's first goal and mode from its predecessor's last state, the Middle TD3 on the
 state alone, and PPO returns that end only at their own terminals."""
 
+import functools
+
 import jax
 import jax.numpy as jp
 import numpy as np
@@ -12,7 +14,8 @@ import pytest
 import envs
 from nonmono_jax import agent as agent_lib
 from nonmono_jax import low as low_lib
-from nonmono_jax import methods, middle as middle_lib, networks, ppo, td3, top as top_lib
+from nonmono_jax import methods, middle as middle_lib, networks, numbers, ppo, td3
+from nonmono_jax import top as top_lib
 from nonmono_jax.config import TopConfig
 
 OBS, ACT = 7, 2
@@ -96,12 +99,12 @@ def test_middle_td3_sees_the_state_alone_in_the_code():
 
 @pytest.mark.parametrize("cross", [False, True])
 def test_ppo_returns_end_at_episode_ends_unless_they_cross_them(cross):
-  top = top_lib.make_top(OBS, jp.zeros(3), TopConfig(ppo=ppo.PPOConfig(hidden=(8,),
-                                                                       discrete=True)), cross)
+  top_config = TopConfig(ppo=ppo.PPOConfig(hidden=(8,), discrete=True))
+  top = top_lib.make_top(OBS, jp.zeros(3), top_config, cross)
   h = top.start(top.ppo.init(jax.random.PRNGKey(0)).params, jp.zeros(OBS),
                 jax.random.PRNGKey(1), True)
   h = top.accumulate(h, -30.0, 0.0)  # far from the target: done_m = 0
-  step, m = top.close(h, False, True)  # at an episode's end
+  step, m = top.close(h, False, True, numbers.of(top_config))  # at an episode's end
   assert float(m["done_m"]) == 0.0 and float(step.done) == (0.0 if cross else 1.0)
   config = methods.make_config("ours", "PointPush", {
       "low": SMALL, "middle": SMALL, "middle_ppo.hidden": (8,), "returns_cross_episodes": cross})
@@ -125,7 +128,7 @@ def code_agent():
       **{f"low.{k}": v for k, v in small.items()}, **{f"middle.{k}": v for k, v in small.items()},
       "scored_state": "current", "episode_start": "last"})
   agent = agent_lib.make_agent(env, config)
-  return env, agent, jax.jit(agent.step)
+  return env, agent, jax.jit(functools.partial(agent.step, hp=numbers.of(config)))
 
 
 def test_training_scores_the_state_before_the_step_and_keeps_the_last_goal(code_agent):

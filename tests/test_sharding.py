@@ -40,7 +40,7 @@ SCRIPT = textwrap.dedent("""
       assert all(x.sharding.spec == lanes for x in jax.tree.leaves(states)), [
           (jax.tree_util.keystr(p), x.sharding.spec)
           for p, x in jax.tree_util.tree_leaves_with_path(states) if x.sharding.spec != lanes]
-      assert trainer.chunk._cache_size() == 1, trainer.chunk._cache_size()
+      assert trainer.chunk_program._cache_size() == 1, trainer.chunk_program._cache_size()
     (a, ma), (b, mb) = out["two"], out["one"]
     assert len(a.env.obs.sharding.device_set) == 2 and len(b.env.obs.sharding.device_set) == 1
     assert a.low.params.critic["params"]["dense_0"]["kernel"].shape[0] == 4

@@ -1,13 +1,14 @@
 """TD3 and the replay buffer: hand-worked targets, invariants, a toy problem, real branches."""
 
 import dataclasses
+import functools
 
 import jax
 import jax.numpy as jp
 import numpy as np
 import pytest
 
-from nonmono_jax import buffers, networks, td3
+from nonmono_jax import buffers, networks, numbers, td3
 
 SMALL = td3.TD3Config(hidden=(32, 32), batch_size=64)
 
@@ -40,7 +41,7 @@ def test_critic_loss_matches_manual_target():
     p = state.params
     batch = _batch(jax.random.PRNGKey(1))
     key = jax.random.PRNGKey(2)
-    loss, _ = agent.critic_loss(p.critic, p, batch, key)
+    loss, _ = agent.critic_loss(p.critic, p, batch, key, numbers.of(cfg))
     a_next = agent.act(td3.TD3Params(p.target_actor, p.critic, p.target_actor, p.target_critic),
                        batch.next_obs, batch.next_context)
     if smoothing:
@@ -52,7 +53,7 @@ def test_critic_loss_matches_manual_target():
     manual = jp.mean((q[0] - y) ** 2) + jp.mean((q[1] - y) ** 2)
     np.testing.assert_allclose(loss, manual, rtol=1e-5)
     # Without smoothing the target does not depend on the key.
-    loss2, _ = agent.critic_loss(p.critic, p, batch, jax.random.PRNGKey(3))
+    loss2, _ = agent.critic_loss(p.critic, p, batch, jax.random.PRNGKey(3), numbers.of(cfg))
     assert (loss2 == loss) == (not smoothing)
 
 
@@ -60,14 +61,15 @@ def test_delayed_actor_and_polyak_targets():
   agent = td3.make_td3(3, 2, 2, 1.0, SMALL)
   s0 = agent.init(jax.random.PRNGKey(0))
   batch = _batch(jax.random.PRNGKey(1))
-  s1, m = agent.update(s0, batch, jax.random.PRNGKey(2), False)
+  hp = numbers.of(SMALL)
+  s1, m = agent.update(s0, batch, jax.random.PRNGKey(2), False, hp)
   same = jax.tree.map(lambda a, b: bool(jp.all(a == b)), s0.params.actor, s1.params.actor)
   assert all(jax.tree.leaves(same)) and float(m["actor_loss"]) == 0.0
   assert all(jax.tree.leaves(jax.tree.map(lambda a, b: bool(jp.all(a == b)),
                                           s0.params.target_critic, s1.params.target_critic)))
   changed = jax.tree.map(lambda a, b: bool(jp.any(a != b)), s0.params.critic, s1.params.critic)
   assert all(jax.tree.leaves(changed))
-  s2, _ = agent.update(s1, batch, jax.random.PRNGKey(3), True)
+  s2, _ = agent.update(s1, batch, jax.random.PRNGKey(3), True, hp)
   expect = td3.polyak(s1.params.target_actor, s2.params.actor, SMALL.tau)
   for a, b in zip(jax.tree.leaves(expect), jax.tree.leaves(s2.params.target_actor)):
     np.testing.assert_allclose(a, b, rtol=1e-6)
@@ -82,7 +84,7 @@ def test_actor_gate_stays_a_branch_under_vmap():
   states = jax.vmap(agent.init)(jax.random.split(jax.random.PRNGKey(0), 4))
   batch = jax.vmap(_batch)(jax.random.split(jax.random.PRNGKey(1), 4))
   keys = jax.random.split(jax.random.PRNGKey(2), 4)
-  upd = jax.vmap(agent.update, in_axes=(0, 0, 0, None))
+  upd = jax.vmap(functools.partial(agent.update, hp=numbers.of(SMALL)), in_axes=(0, 0, 0, None))
   jaxpr = str(jax.make_jaxpr(upd)(states, batch, keys, jp.array(True)))
   assert "cond[" in jaxpr
   out, _ = jax.jit(upd)(states, batch, keys, jp.array(True))
@@ -105,7 +107,8 @@ def test_td3_solves_a_contextual_bandit():
 
   def body(state, i):
     k = jax.random.PRNGKey(i)
-    state, m = agent.update(state, batch(k), jax.random.fold_in(k, 1), i % 2 == 0)
+    state, m = agent.update(state, batch(k), jax.random.fold_in(k, 1), i % 2 == 0,
+                            numbers.of(cfg))
     return state, m["critic_loss"]
 
   state, losses = jax.jit(lambda s: jax.lax.scan(body, s, jp.arange(1500)))(

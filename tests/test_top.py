@@ -4,7 +4,7 @@ import jax
 import jax.numpy as jp
 import numpy as np
 
-from nonmono_jax import hierarchy, methods, ppo
+from nonmono_jax import hierarchy, methods, numbers, ppo
 from nonmono_jax.top import Horizon, make_top
 
 OBS = 4
@@ -13,7 +13,9 @@ _ppo = ppo.PPOConfig(hidden=(8,), discrete=True)
 
 
 def _top(method):
-  return make_top(OBS, TARGET, methods.make_config(method, "AntPush", {"top.ppo": _ppo}).top)
+  """The Top of ``method`` and its numbers (``hp``)."""
+  config = methods.make_config(method, "AntPush", {"top.ppo": _ppo}).top
+  return make_top(OBS, TARGET, config), numbers.of(config)
 
 
 def _horizon(mode, reward=-100.0, done_count=30.0, count=50.0):
@@ -23,22 +25,23 @@ def _horizon(mode, reward=-100.0, done_count=30.0, count=50.0):
 
 
 def test_close_rewards_and_dones():
-  top = _top("ours")  # Push: alpha (0, 0.4, 0.7), S_O 0.6 each, 0.9 while starting
+  top, hp = _top("ours")  # Push: alpha (0, 0.4, 0.7), S_O 0.6 each, 0.9 while starting
   for mode, alpha in enumerate((0.0, 0.4, 0.7)):
-    tr, m = top.close(_horizon(mode), False, False)
+    tr, m = top.close(_horizon(mode), False, False, hp)
     np.testing.assert_allclose(tr.reward, -100.0 * (1 + alpha), rtol=1e-6)
     np.testing.assert_allclose(m["s_o_m"], 0.6)
     assert tr.done == 1.0  # 30/50 = 0.6 >= S_O = 0.6
-  tr, _ = top.close(_horizon(hierarchy.PPO), True, False)
+  tr, _ = top.close(_horizon(hierarchy.PPO), True, False, hp)
   assert tr.done == 0.0  # the starting mode asks for 0.9
-  tr, _ = top.close(_horizon(hierarchy.PPO, done_count=0.0), False, True)
+  tr, _ = top.close(_horizon(hierarchy.PPO, done_count=0.0), False, True, hp)
   assert tr.done == 1.0  # an episode's end ends the Top's return too
-  tr, _ = _top("ours-no-reward-mod").close(_horizon(hierarchy.RANDOM), False, False)
+  no_mod, hp = _top("ours-no-reward-mod")
+  tr, _ = no_mod.close(_horizon(hierarchy.RANDOM), False, False, hp)
   np.testing.assert_allclose(tr.reward, -100.0)  # alpha = 0
 
 
 def test_top_accumulates_its_horizon():
-  top = _top("ours")
+  top, _ = _top("ours")
   h = _horizon(0, reward=0.0, done_count=0.0, count=0.0)
   for r, s in ((-2.0, 0.0), (-1.0, 1.0), (-0.5, 1.0)):
     h = top.accumulate(h, jp.asarray(r), jp.asarray(s))
@@ -46,7 +49,7 @@ def test_top_accumulates_its_horizon():
 
 
 def test_forced_start_is_random_with_its_log_prob():
-  top = _top("ours")
+  top, _ = _top("ours")
   params = top.ppo.init(jax.random.PRNGKey(0)).params
   obs = jp.ones(OBS)
   h = top.start(params, obs, jax.random.PRNGKey(1), True)
@@ -69,17 +72,17 @@ def _rollout():
 
 def test_loss_modification_weights_td3_down_and_exploration_up():
   rollout, s_e = _rollout(), jp.asarray(0.5)
-  state = _top("ours").ppo.init(jax.random.PRNGKey(0))
-  top, plain = _top("ours"), _top("ours-no-loss-mod")
-  got, _ = top.update(state, rollout, s_e)
+  (top, hp), (plain, plain_hp) = _top("ours"), _top("ours-no-loss-mod")
+  state = top.ppo.init(jax.random.PRNGKey(0))
+  got, _ = top.update(state, rollout, s_e, hp)
   weights = jp.where(rollout.action == 0, 0.5, 1.5)
-  want, _ = top.ppo.update(state, rollout, None, weights)
+  want, _ = top.ppo.update(state, rollout, None, weights, hp.ppo)
   for a, b in zip(jax.tree.leaves(got.params), jax.tree.leaves(want.params)):
     np.testing.assert_allclose(a, b, rtol=1e-6)
   # Without the loss modification S_E does not matter, and with S_E = 0 both agree.
-  a, _ = plain.update(state, rollout, s_e)
-  b, _ = plain.update(state, rollout, jp.asarray(0.9))
-  c, _ = top.update(state, rollout, jp.asarray(0.0))
+  a, _ = plain.update(state, rollout, s_e, plain_hp)
+  b, _ = plain.update(state, rollout, jp.asarray(0.9), plain_hp)
+  c, _ = top.update(state, rollout, jp.asarray(0.0), hp)
   same = lambda x, y: all(np.allclose(p, q) for p, q in zip(jax.tree.leaves(x.params),
                                                               jax.tree.leaves(y.params)))
   assert same(a, b) and same(a, c) and not same(a, got)

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 import envs
-from nonmono_jax import hyper, methods, run, sinks, train
-from nonmono_jax.config import AgentConfig
+from nonmono_jax import methods, numbers, run, sinks, train
+from nonmono_jax.config import AgentConfig, check_group
 from nonmono_jax import plan as plan_lib
 from tests.tests_support import TINY_OVERRIDES
 
@@ -44,17 +44,17 @@ def runs():
   return group, _run(group), _run(alone)
 
 
-def test_a_lane_of_a_group_is_that_variant_run_alone(runs):
+def test_a_lane_of_a_group_is_that_variant_run_alone_bit_for_bit(runs):
+  """One program path: a config alone is a group of one, its numbers arguments as in a
+  group, so its lane computes the same bits."""
   group, (g_states, g_chunks), (a_states, a_chunks) = runs
   assert group.num_lanes == 2 * SEEDS and g_chunks[0]["success"].shape == (2 * SEEDS,)
   assert a_chunks[-1]["top/updated"].min() > 0  # the Top trained in the compared chunk
   for g, a in zip(g_chunks, a_chunks):
     assert set(g) == set(a)
     for name in a:
-      np.testing.assert_allclose(group.lanes(g, 1)[name], a[name], rtol=1e-4, atol=1e-5,
-                                 err_msg=name)
-  jax.tree.map(lambda g, a: np.testing.assert_allclose(g, a, rtol=1e-4, atol=1e-5),
-               group.lanes(g_states, 1).chooser.learner.params, a_states.chooser.learner.params)
+      np.testing.assert_array_equal(group.lanes(g, 1)[name], a[name], err_msg=name)
+  jax.tree.map(np.testing.assert_array_equal, group.lanes(g_states, 1), a_states)
 
 
 def test_gates_stay_branches_with_batched_numbers():
@@ -62,7 +62,7 @@ def test_gates_stay_branches_with_batched_numbers():
   env = envs.make("PointMaze", episode_length=EPISODE)
   group = train.make_group_trainer(env, [tiny("ours"), tiny("ours-no-mods")], SEEDS, CHUNK)
   states = jax.eval_shape(group.init, jax.random.PRNGKey(0))
-  hp = jax.tree.map(np.asarray, hyper.stack([tiny("ours")] * group.num_lanes))
+  hp = jax.tree.map(np.asarray, numbers.stack([tiny("ours")] * group.num_lanes))
   jaxpr = str(jax.make_jaxpr(jax.vmap(group.agent.step, in_axes=(0, None, 0)))(
       states, np.int32(0), hp))
   assert jaxpr.count("cond[") >= 10, jaxpr.count("cond[")
@@ -76,12 +76,12 @@ def test_the_variants_differ_in_what_their_numbers_change(runs):
 
 
 def test_only_configs_with_one_static_key_share_a_program():
-  assert hyper.static_key(tiny("ours", {"top.alpha": (0.1, 0.2, 0.3)})) == hyper.static_key(
+  assert numbers.static_key(tiny("ours", {"top.alpha": (0.1, 0.2, 0.3)})) == numbers.static_key(
       tiny("ours-no-loss-mod"))
   with pytest.raises(ValueError, match="switch"):
-    hyper.check_group([tiny("ours"), tiny("hiro")])
+    check_group([tiny("ours"), tiny("hiro")])
   with pytest.raises(ValueError, match="top.horizon"):
-    hyper.check_group([tiny("ours"), tiny("ours", {"top.horizon": 20})])
+    check_group([tiny("ours"), tiny("ours", {"top.horizon": 20})])
 
 
 def _plan(out, sweep=None):
@@ -155,3 +155,19 @@ def test_a_run_from_before_variants_resumes_its_methods_one_after_another(tmp_pa
   payload = plan_lib.read_config(str(tmp_path))
   del payload["grouped"], payload["variants"]
   assert plan_lib.from_json(payload, str(tmp_path)).groups() == [["ours"], ["ours-no-mods"]]
+
+
+def test_traced_numbers_are_declared_once_on_their_fields():
+  """``numbers.traced`` on a field is the whole declaration: the paths, the lane's numbers and
+  the static key all follow from it."""
+  paths = set(numbers.paths(AgentConfig()))
+  assert {"top.alpha", "top.reward_mod", "top.loss_mod", "homeostasis.rho", "low.gamma",
+          "middle.tau", "top.ppo.clip", "middle_ppo.lr_actor", "middle_goal_noise"} <= paths
+  assert not any(p.split(".")[-1] in ("hidden", "batch_size", "horizon", "k_epochs", "c")
+                 for p in paths)
+  hp = numbers.of(tiny("ours-no-reward-mod", {"top.alpha": (0.0, 0.5, 0.25)}))
+  assert float(hp.top.reward_mod) == 0.0 and float(hp.top.loss_mod) == 1.0
+  np.testing.assert_array_equal(hp.top.alpha, np.float32([0.0, 0.5, 0.25]))
+  assert hp.low.gamma.dtype == np.float32 and len(jax.tree.leaves(hp)) == len(paths)
+  with pytest.raises(AttributeError, match="no traced number 'c'"):
+    hp.c
