@@ -10,7 +10,7 @@ import sys
 
 import jax
 
-from nonmono_jax.plan import host
+from nonmono_jax.host.plan import host
 
 RESULTS = os.path.join(os.path.dirname(__file__), "results")
 # Dotted overrides that time every step with all modes live: no warm-up, no starting mode,

@@ -5,7 +5,7 @@ The trainer of ``seed_scaling`` at the point preset (``--seeds`` lanes, warm-up 
 mode 0, evaluation off), one chunk compiled and then timed ``--chunks`` times; the two layouts
 run one after the other in ``--rounds`` alternating rounds (best chunk kept per layout), so a
 busy machine slows them alike. In the multi-process layout the processes join JAX's runtime
-on localhost (``nonmono_jax.processes``), each pinned to its share of the cores before JAX
+on localhost (``nonmono_jax.host.processes``), each pinned to its share of the cores before JAX
 loads (``experiments/cores.py``, as the experiment command does), and, as a run does between
 chunks, all-gather the chunk's metrics; the rate is process 0's.
 
@@ -35,7 +35,7 @@ def worker(args) -> None:
                  str(args.num_processes), "--process-id", str(args.process_id)])
   import jax
 
-  from nonmono_jax import processes, run
+  from nonmono_jax.host import processes, run
   run.use_cpu_devices(args.cpu_devices)
   if args.num_processes > 1:
     processes.join(f"localhost:{args.port}", args.num_processes, args.process_id)

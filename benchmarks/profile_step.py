@@ -31,7 +31,8 @@ from jax.profiler import ProfileData
 import envs
 from benchmarks import common
 from benchmarks.common import ALL_MODES_LIVE
-from nonmono_jax import methods, train
+from nonmono_jax.core import train
+from nonmono_jax.host import methods
 
 _STRIP = re.compile(r"jit\(local_chunk\)/|while/body/|closed_call/|vmap\(\)/|branch_\d_fun/"
                     r"|cond/|jvp\(|transpose\(|vmap\(|checkpoint/|\)")

@@ -33,7 +33,8 @@ import jax
 
 from benchmarks import common
 from benchmarks.profile_step import make_point_trainer
-from nonmono_jax import hierarchy, methods, run
+from nonmono_jax.core import hierarchy
+from nonmono_jax.host import methods, run
 
 
 def matmul_gflops(n: int = 1024, repeats: int = 10) -> float:

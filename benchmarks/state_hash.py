@@ -28,7 +28,8 @@ import numpy as np
 
 import envs
 from benchmarks import common
-from nonmono_jax import methods, train
+from nonmono_jax.core import train
+from nonmono_jax.host import methods
 
 OVERRIDES = {"warmup_steps": 200, "top.starting_steps": 300, "eval_every": 100_000}
 SEEDS, CHUNK, STEPS = 2, 500, 1500

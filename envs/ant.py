@@ -72,6 +72,24 @@ def _leg(name: str, aux: str, leg: str, ankle: str, sx: float, sy: float, hip: s
       </body>"""
 
 
+def _contact_bits(optimised: bool):
+  """(ant contype, floor, static and block (contype, conaffinity), the aux geoms' attribute):
+  the optimised model's collision filter, or HIRO's all-ones."""
+  if optimised:
+    return (maze.BIT_STATIC | maze.BIT_FLOOR, (0, maze.BIT_FLOOR), (0, maze.BIT_STATIC),
+            (maze.BIT_STATIC | maze.BIT_FLOOR, maze.BIT_STATIC), ' contype="0" conaffinity="0"')
+  return 1, (1, 1), (1, 1), (1, 1), ""
+
+
+def _numerics(solver: SolverSettings) -> str:
+  numerics = ""
+  if solver.max_contact_points > -1:
+    numerics += f'<numeric name="max_contact_points" data="{solver.max_contact_points}"/>'
+  if solver.max_geom_pairs > -1:
+    numerics += f'<numeric name="max_geom_pairs" data="{solver.max_geom_pairs}"/>'
+  return numerics
+
+
 def ant_maze_xml(layout: maze.MazeLayout, optimised: bool = True,
                  solver: SolverSettings | None = None) -> str:
   """The MJCF of HIRO's ant in a maze (the ant alone on a flat floor for an all-free grid)."""
@@ -79,18 +97,7 @@ def ant_maze_xml(layout: maze.MazeLayout, optimised: bool = True,
   has_blocks = bool(layout.blocks())
   # HIRO maze_env.py: with movable blocks, stiffer default contacts.
   solimp = ' solimp=".995 .995 .01"' if has_blocks else ""
-  if optimised:
-    ant_bits = maze.BIT_STATIC | maze.BIT_FLOOR
-    floor_bits = (0, maze.BIT_FLOOR)
-    static_bits = (0, maze.BIT_STATIC)
-    block_bits = (maze.BIT_STATIC | maze.BIT_FLOOR, maze.BIT_STATIC)
-    aux_attr = ' contype="0" conaffinity="0"'
-  else:
-    ant_bits = 1
-    floor_bits = (1, 1)
-    static_bits = (1, 1)
-    block_bits = (1, 1)
-    aux_attr = ""
+  ant_bits, floor_bits, static_bits, block_bits, aux_attr = _contact_bits(optimised)
   z0 = TORSO_Z + layout.floor_z
   legs = "".join([
       _leg("front_left_leg", "aux_1_geom", "left_leg_geom", "left_ankle_geom", 1, 1,
@@ -105,11 +112,7 @@ def ant_maze_xml(layout: maze.MazeLayout, optimised: bool = True,
   motors = "".join(
       f'<motor ctrllimited="true" ctrlrange="-{CTRL_LIMIT:g} {CTRL_LIMIT:g}" joint="{j}" gear="1"/>'
       for j in ("hip_4", "ankle_4", "hip_1", "ankle_1", "hip_2", "ankle_2", "hip_3", "ankle_3"))
-  numerics = ""
-  if solver.max_contact_points > -1:
-    numerics += f'<numeric name="max_contact_points" data="{solver.max_contact_points}"/>'
-  if solver.max_geom_pairs > -1:
-    numerics += f'<numeric name="max_geom_pairs" data="{solver.max_geom_pairs}"/>'
+  numerics = _numerics(solver)
   extent = max(layout.shape) * layout.scaling
   return f"""<mujoco model="ant_maze">
   <compiler angle="degree" inertiafromgeom="true"/>

@@ -23,7 +23,7 @@ equality flags, mocap, user data) stays at the model's defaults and ``ctrl`` is 
 action. So a checkpoint of a ``CState`` restores the physics bit for bit. ``qpos`` / ``qvel``
 are float32 copies for observations and rendering; ``unstable`` is 1.0 where MuJoCo found the
 simulation unstable during the step (a bad qpos, qvel or qacc warning, after which it resets
-that simulation, or an error in the engine): the trainer stops on it (``nonmono_jax.run``).
+that simulation, or an error in the engine): the trainer stops on it (``nonmono_jax.host.run``).
 """
 
 from __future__ import annotations

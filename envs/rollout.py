@@ -1,6 +1,6 @@
 """The one env rollout: ``env.step`` in a ``lax.scan``, driven by a policy with a carry.
 
-Evaluation and rendering (the hierarchical policy, ``nonmono_jax/evaluate.py``), the random
+Evaluation and rendering (the hierarchical policy, ``nonmono_jax/core/evaluate.py``), the random
 baseline and the env benchmark all unroll through it:
 
     (last_state, carry), records = unroll(env, state, act, xs, carry, observe)

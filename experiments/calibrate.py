@@ -20,7 +20,7 @@ import sys
 import numpy as np
 
 from experiments import plot
-from nonmono_jax import methods
+from nonmono_jax.host import methods
 
 CANDIDATES = (100_000, 200_000, 500_000, 1_000_000)
 CAP = 500_000  # the comparison's budget is at most this (compute)

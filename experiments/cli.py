@@ -8,16 +8,16 @@
 
 Methods (and sweep variants) whose programs coincide (``hyper.static_key``: ours and its
 ablations; a sweep of traced numbers) run as lanes of one program; the others one after
-another; all into one folder (``nonmono_jax.io``): ``config.json``,
+another; all into one folder (``nonmono_jax.host.io``): ``config.json``,
 ``metrics.csv`` (one row per method, seed and chunk), ``metrics.jsonl`` (every metric) and
-``checkpoints/<method>/``. The run itself is the library ``nonmono_jax.run`` (the plan, from
+``checkpoints/<method>/``. The run itself is the library ``nonmono_jax.host.run`` (the plan, from
 the presets or from ``config.json``; the folder; the training loop; the output sinks): this
 module turns flags into a plan and outcomes into exit codes.
 
 - Every value is checked before anything compiles or the folder is created: the configs'
-  own ranges, ``nonmono_jax.validation`` (finite floats, int32 ints, full dotted names) and
+  own ranges, ``nonmono_jax.core.validation`` (finite floats, int32 ints, full dotted names) and
   the memory the run needs (``jax.eval_shape`` of the trainer's init) against what is free.
-- One process writes a run folder at a time (``nonmono_jax.runlock``, held for the whole run).
+- One process writes a run folder at a time (``nonmono_jax.host.runlock``, held for the whole run).
 - ``--resume`` restores the newest checkpoint that restores, and accepts only the flags that
   do not change the run (``--time-limit``, ``--no-progress``, ``--tensorboard``).
 - Every failure is one line; exit codes: 0 done, 1 failed run (NaN or Inf in a learner,
@@ -43,12 +43,12 @@ cores.share(sys.argv[1:])  # before JAX loads: this process's share of a machine
 
 import envs  # noqa: E402
 from envs import ant_maze  # noqa: E402
-from nonmono_jax import config as config_lib  # noqa: E402
-from nonmono_jax import io, methods, plan as plan_lib, processes, run, runlock, sinks  # noqa: E402
-from nonmono_jax import programs as programs_lib  # noqa: E402
-from nonmono_jax.methods import task_of_module  # noqa: E402,F401 - for experiments/<task>.py
-from nonmono_jax.plan import Plan  # noqa: E402,F401 - for callers of plan_from_args
-from nonmono_jax.run import Clock, NonFinite, TimeLimit  # noqa: E402,F401 - the run's, in tests
+from nonmono_jax.core import config as config_lib  # noqa: E402
+from nonmono_jax.host import io, methods, plan as plan_lib, processes, run, runlock, sinks  # noqa: E402
+from nonmono_jax.host import programs as programs_lib  # noqa: E402
+from nonmono_jax.host.methods import task_of_module  # noqa: E402,F401 - for experiments/<task>.py
+from nonmono_jax.host.plan import Plan  # noqa: E402,F401 - for callers of plan_from_args
+from nonmono_jax.host.run import Clock, NonFinite, TimeLimit  # noqa: E402,F401 - the run's, in tests
 
 EXIT_FAILED, EXIT_BAD_INPUT, EXIT_TIME_LIMIT = 1, 2, 3
 EXIT_NON_FINITE = EXIT_FAILED
@@ -81,7 +81,7 @@ def _fields(cls, prefix=""):
 def _add_field_flags(parser: argparse.ArgumentParser, example: config_lib.AgentConfig):
   group = parser.add_argument_group(
       "agent config fields (defaults: this task's preset for ours; each method's preset may "
-      "differ, see nonmono_jax/methods.py)")
+      "differ, see nonmono_jax/host/methods.py)")
   for name, t in _fields(config_lib.AgentConfig):
     default = config_lib.get(example, name)
     kwargs = dict(dest="field:" + name, default=argparse.SUPPRESS,
@@ -154,6 +154,16 @@ def make_parser(task: str) -> argparse.ArgumentParser:
                    help="the ant's physics: c, MuJoCo's C engine called from inside the jitted "
                         "step (10-25x MJX on a CPU); mjx, the MJX pipeline (for accelerators); "
                         "auto: c on a CPU, mjx on an accelerator; --resume keeps the run's")
+  _add_process_flags(p)
+  p.add_argument("--no-progress", action="store_true", help="no progress bar")
+  p.add_argument("--tensorboard", action="store_true",
+                 help="also write TensorBoard event files to OUT/tensorboard/<method>")
+  _add_field_flags(p, methods.make_config("ours", task))
+  return p
+
+
+def _add_process_flags(p: argparse.ArgumentParser) -> None:
+  """--distributed and the three flags that say where the processes are."""
   p.add_argument("--distributed", action="store_true",
                  help="one run over several processes (JAX's multi-process runtime): the "
                       "lanes are split over every process's devices, process 0 writes the run "
@@ -165,11 +175,6 @@ def make_parser(task: str) -> argparse.ArgumentParser:
                  help="with --distributed: the run's process count")
   p.add_argument("--process-id", type=int, default=None, metavar="I",
                  help="with --distributed: this process's index, 0 to N - 1")
-  p.add_argument("--no-progress", action="store_true", help="no progress bar")
-  p.add_argument("--tensorboard", action="store_true",
-                 help="also write TensorBoard event files to OUT/tensorboard/<method>")
-  _add_field_flags(p, methods.make_config("ours", task))
-  return p
 
 
 def plan_from_args(task: str, args: argparse.Namespace) -> plan_lib.Plan:

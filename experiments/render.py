@@ -21,8 +21,9 @@ import jax
 import jax.numpy as jp
 import numpy as np
 
-from nonmono_jax import evaluate, io, plan as plan_lib
-from nonmono_jax import programs as programs_lib
+from nonmono_jax.core import evaluate
+from nonmono_jax.host import io, plan as plan_lib
+from nonmono_jax.host import programs as programs_lib
 
 
 def rollout(run_dir: str, method: str | None = None, seed: int = 0, key: int = 0) -> dict:

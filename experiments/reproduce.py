@@ -27,7 +27,7 @@ import io as text_io
 import sys
 import tempfile
 
-from nonmono_jax import io, plan as plan_lib, run
+from nonmono_jax.host import io, plan as plan_lib, run
 
 EXIT_DIFFER, EXIT_BAD_INPUT = 1, 2
 

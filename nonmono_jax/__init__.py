@@ -1,7 +1,9 @@
 """nonmono-jax: the learners, the three-level agent and the vmapped trainer.
 
-The environments live in the top-level ``envs`` package; this package holds the learning side
-(Kim et al. 2023, Algorithm 1), built in the trainer issue.
+Two halves (ARCHITECTURE.md): ``nonmono_jax.core``, the jitted program (the agent of Kim et
+al. 2023, Algorithm 1, its learners and the trainer), and ``nonmono_jax.host``, the Python
+side that plans a run and keeps its folder. The environments are the top-level ``envs``
+package; the commands are ``experiments``.
 """
 
 __version__ = "0.1.0"

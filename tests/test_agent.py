@@ -10,11 +10,12 @@ import numpy as np
 import pytest
 
 import envs
-from nonmono_jax import agent as agent_lib
-from nonmono_jax import hierarchy, homeostasis, methods, modes, numbers, ppo, td3, train
-from nonmono_jax import config as config_lib
-from nonmono_jax.config import AgentConfig, TopConfig
-from nonmono_jax.switch import TriggerState
+from nonmono_jax.core import agent as agent_lib
+from nonmono_jax.core import hierarchy, homeostasis, modes, numbers, ppo, td3, train
+from nonmono_jax.host import methods
+from nonmono_jax.core import config as config_lib
+from nonmono_jax.core.config import AgentConfig, TopConfig
+from nonmono_jax.core.switch import TriggerState
 
 C, HORIZON, TOP_EVERY, MID_PPO_EVERY = 5, 25, 50, 15
 WARMUP, STARTING, STEPS, EPISODE = 100, 100, 500, 100
@@ -280,7 +281,7 @@ def test_bad_config_fails_before_compiling():
   with pytest.raises(ValueError, match="task must be one of"):
     methods.make_config("ours", "HalfCheetah")
   with pytest.raises(ValueError, match="unknown AgentConfig field"):
-    methods.make_config("ours", "AntPush", horizon=3)
+    methods.make_config("ours", "AntPush", {"horizon": 3})
   with pytest.raises(ValueError, match="multiple of top.horizon"):
     agent_lib.make_agent(envs.make("PointMaze", episode_length=60), AgentConfig())
 

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 import envs
-from nonmono_jax import io, methods, ppo, td3, train
+from nonmono_jax.core import ppo, td3, train
+from nonmono_jax.host import io, methods
 
 
 def _trainer(physics: str):

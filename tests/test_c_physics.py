@@ -10,7 +10,7 @@ import pytest
 
 import envs
 from envs import c_physics, rollout
-from nonmono_jax import run
+from nonmono_jax.host import run
 
 STEPS = 20
 

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from experiments import claims, plot
-from nonmono_jax import io
+from nonmono_jax.host import io
 
 STEPS = np.arange(110_000, 1_000_001, 10_000)
 

@@ -49,6 +49,9 @@ def test_run_folder_holds_config_metrics_and_checkpoints(reference):
   assert config["configs"]["ours"]["low"]["hidden"] == [16, 16]
   assert config["configs"]["ours"]["top"]["starting_steps"] == 100
   assert config["versions"]["jax"] and config["platform"] == "cpu"
+  head = subprocess.run(["git", "-C", ROOT, "rev-parse", "HEAD"], capture_output=True, text=True)
+  if head.returncode == 0:  # a checkout: the commit where the run reproduces bit for bit
+    assert config["code"]["commit"] == head.stdout.strip()
   rows = _rows(reference)
   assert len(rows) == 2 * 2 * 4  # methods x seeds x chunks
   assert [r["env_step"] for r in rows[:4]] == ["200", "200", "400", "400"]
@@ -262,7 +265,7 @@ def test_first_non_finite_names_seed_and_level():
 
   import numpy as np
 
-  from nonmono_jax import io
+  from nonmono_jax.host import io
 
   params = lambda: {"w": np.ones((3, 4)), "b": np.zeros((3,))}
   states = SimpleNamespace(low=SimpleNamespace(params=params()),
@@ -277,7 +280,7 @@ def test_first_non_finite_names_seed_and_level():
 
 
 def test_non_finite_stops_the_run_after_the_last_good_checkpoint(tmp_path, monkeypatch, capsys):
-  from nonmono_jax import io
+  from nonmono_jax.host import io
 
   calls = []
 
@@ -314,7 +317,7 @@ def test_render_writes_a_gif_of_a_trained_policy(reference, tmp_path, capsys):
 
 
 def test_widen_keeps_the_paper_per_env_step():
-  from nonmono_jax import methods
+  from nonmono_jax.host import methods
 
   config, spec = methods.make_preset("paper", "ours", "AntPush")
   wide, wspec = methods.widen(config, spec, 64, 8)
@@ -336,7 +339,7 @@ def test_widen_keeps_the_paper_per_env_step():
 
 
 def test_a_widened_run_resumes_with_its_saved_plan(tmp_path):
-  from nonmono_jax import plan as plan_lib
+  from nonmono_jax.host import plan as plan_lib
 
   args = cli.make_parser("PointMaze").parse_args(
       ["--method", "ours", "--envs-per-seed", "4", "--grad-steps", "2", "--out", str(tmp_path)])

@@ -13,9 +13,10 @@ import numpy as np
 import pytest
 
 import envs
-from nonmono_jax import buffers, evaluate, hierarchy, low as low_lib, methods
-from nonmono_jax import middle as middle_lib
-from nonmono_jax import numbers, relabel, td3
+from nonmono_jax.core import buffers, evaluate, hierarchy, low as low_lib
+from nonmono_jax.host import methods
+from nonmono_jax.core import middle as middle_lib
+from nonmono_jax.core import numbers, relabel, td3
 
 OBS, ACT = 7, 2
 SMALL = td3.TD3Config(hidden=(8,), batch_size=4, buffer_size=64)

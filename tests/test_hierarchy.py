@@ -3,7 +3,7 @@
 import jax.numpy as jp
 import numpy as np
 
-from nonmono_jax import hierarchy as h
+from nonmono_jax.core import hierarchy as h
 
 
 def test_goal_transition_and_low_reward():

@@ -9,7 +9,7 @@ import jax.numpy as jp
 import numpy as np
 import pytest
 
-from nonmono_jax import homeostasis
+from nonmono_jax.core import homeostasis
 
 
 def _run(x: jax.Array, key: jax.Array, rho) -> tuple[homeostasis.HomeostasisState, jax.Array]:
@@ -134,7 +134,7 @@ def test_the_ref_presets_are_the_papers(task, rho):
   """The implementation notes' rho per task and method; intra(100): explore periods of 100 env
   steps; a window of k = 30 Middle segments, as the paper's Ref code; its cadence kept to the
   text's periods (docs/fidelity.md)."""
-  from nonmono_jax import methods
+  from nonmono_jax.host import methods
   for method, value in rho.items():
     h = methods.make_config(method, task).homeostasis
     assert (h.rho, h.explore_steps, h.k, h.cadence) == (value, 100, 30, "periods")

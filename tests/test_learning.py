@@ -14,7 +14,8 @@ import pytest
 
 import envs
 from experiments import random_baseline
-from nonmono_jax import methods, train
+from nonmono_jax.core import train
+from nonmono_jax.host import methods
 from tests_support import OPTIMISED
 
 STEPS = 40_000

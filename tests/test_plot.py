@@ -198,7 +198,7 @@ def test_drawing_the_same_figure_twice_writes_the_same_bytes(tmp_path):
 def test_folders_of_a_job_array_merge_their_seeds(tmp_path):
   """Independent runs of one method (a job array, --seed 0, 1) in separate folders: their
   seeds add up in the table and figures, they do not overwrite each other."""
-  from nonmono_jax import io
+  from nonmono_jax.host import io
   for k in range(2):
     d = tmp_path / f"run{k}"
     d.mkdir()

@@ -1,4 +1,4 @@
-"""nonmono_jax.ppo: returns, the clipped loss, Train_T's weights, the std schedule, learning."""
+"""nonmono_jax.core.ppo: returns, the clipped loss, Train_T's weights, the std schedule, learning."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import jax.numpy as jp
 import numpy as np
 import pytest
 
-from nonmono_jax import numbers, ppo
+from nonmono_jax.core import numbers, ppo
 
 SMALL = (16, 16)
 

@@ -1,4 +1,4 @@
-"""One run over several processes (``--distributed``, ``nonmono_jax.processes``): 2 local
+"""One run over several processes (``--distributed``, ``nonmono_jax.host.processes``): 2 local
 processes with 1 CPU device each write the run folder that 1 process with 2 CPU devices
 writes, bit for bit; a killed process stops the other with one line, and ``--resume``
 finishes the run."""
@@ -99,7 +99,7 @@ def test_a_stopped_process_is_declared_lost_after_the_heartbeat_timeout(tmp_path
   an exchange for ever; the watch thread declares it lost after the runtime's heartbeat
   timeout and ends the run with one line."""
   import signal
-  from nonmono_jax import processes
+  from nonmono_jax.host import processes
   out = str(tmp_path / "run")
   argv = TINY_RUN + ["--method", "hiro", "--cpu-devices", "1", "--steps", "400000"]
   procs = _processes(argv + ["--out", out])

@@ -4,7 +4,7 @@ import jax
 import jax.numpy as jp
 import numpy as np
 
-from nonmono_jax import relabel
+from nonmono_jax.core import relabel
 
 GOAL_RANGE = jp.array([10.0, 10.0, 0.5])
 

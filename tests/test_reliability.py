@@ -15,7 +15,8 @@ import time
 import pytest
 
 from experiments import cli
-from nonmono_jax import io, run, validation
+from nonmono_jax.core import validation
+from nonmono_jax.host import io, run
 from tests_support import CACHE_DIR, ROOT, TINY_OVERRIDES, TINY_RUN, TINY_SIZE
 
 
@@ -101,7 +102,7 @@ def test_bad_values_exit_2_in_one_line_before_the_folder_exists(tmp_path, capsys
 def test_the_memory_check_counts_the_compiled_program(tmp_path, capsys, monkeypatch):
   """A run whose train state fits but whose compiled chunk (state, temporaries, evaluation)
   does not is refused before its folder exists, by XLA's count of the program."""
-  from nonmono_jax import plan as plan_lib, programs as programs_lib
+  from nonmono_jax.host import plan as plan_lib, programs as programs_lib
   probe = plan_lib.new_run("PointMaze", ["ours"], preset="quick",
                            overrides=TINY_OVERRIDES, run=TINY_SIZE)
   programs = programs_lib.Programs(probe)

@@ -9,8 +9,9 @@ import os
 import pytest
 
 from experiments import cli
-from nonmono_jax import config as config_lib
-from nonmono_jax import io, methods, plan as plan_lib, run, sinks, td3
+from nonmono_jax.core import config as config_lib
+from nonmono_jax.core import td3
+from nonmono_jax.host import io, methods, plan as plan_lib, run, sinks
 from tests_support import TINY_OVERRIDES, TINY_RUN, TINY_SIZE
 
 
@@ -31,7 +32,7 @@ def test_a_dotted_path_changes_that_field_and_keeps_its_neighbours():
   config = config_lib.override(base, {"low": small, "low.batch_size": 2})
   assert config.low.hidden == (8,) and config.low.batch_size == 2
   assert config_lib.merge({"low.hidden": (64,)}, {"low": small}) == {"low": small}
-  assert methods.make_config("hiro", "PointMaze", low=small).low == small
+  assert methods.make_config("hiro", "PointMaze", {"low": small}).low == small
 
 
 @pytest.mark.parametrize("overrides,message", [
@@ -236,7 +237,7 @@ def test_a_config_json_that_today_cannot_rebuild_still_loads(old_run, tmp_path):
 def test_the_ant_physics_is_recorded_and_an_old_ant_run_keeps_mjx(tmp_path):
   plan = plan_lib.new_run("AntPush", ["hiro"], preset="quick", out=str(tmp_path / "a"))
   assert plan.physics == "c"  # auto on a CPU
-  from nonmono_jax import programs as programs_lib
+  from nonmono_jax.host import programs as programs_lib
   assert plan.env().physics == "c"
   assert programs_lib.Programs(plan).trainer("hiro").agent.env.physics == "c"
   payload = plan_lib.to_json(plan)

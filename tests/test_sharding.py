@@ -17,14 +17,16 @@ SCRIPT = textwrap.dedent("""
     jax.config.update("jax_compilation_cache_dir", os.environ["CACHE"])
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
     import envs
-    from nonmono_jax import methods, run, td3, train
+    from nonmono_jax.core import td3, train
+    from nonmono_jax.host import methods, run
     run.use_cpu_devices(2)  # what --cpu-devices 2 does, before JAX runs anything
     assert jax.device_count() == 2
     run.use_cpu_devices(2)  # again, once JAX runs: the same count is fine
     env = envs.make("PointMaze", episode_length=20)
     small = td3.TD3Config(hidden=(16, 16), batch_size=8, buffer_size=200)
-    config = methods.make_config("hiro", "PointMaze", c=5, warmup_steps=20, eval_every=20,
-                                 eval_episodes=2, low=small, middle=small)
+    config = methods.make_config("hiro", "PointMaze", {
+        "c": 5, "warmup_steps": 20, "eval_every": 20, "eval_episodes": 2, "low": small,
+        "middle": small})
     out = {}
     for name, devices in (("two", jax.devices()), ("one", jax.devices()[:1])):
       trainer = train.make_trainer(env, config, num_seeds=4, chunk_steps=20, devices=devices)

@@ -5,7 +5,7 @@ import jax.numpy as jp
 import numpy as np
 import pytest
 
-from nonmono_jax import hierarchy, homeostasis, switch as switch_lib
+from nonmono_jax.core import hierarchy, homeostasis, switch as switch_lib
 
 C = 10
 EXPLORE, EXPLOIT = hierarchy.RANDOM, hierarchy.TD3

@@ -8,7 +8,7 @@ import jax.numpy as jp
 import numpy as np
 import pytest
 
-from nonmono_jax import buffers, networks, numbers, td3
+from nonmono_jax.core import buffers, networks, numbers, td3
 
 SMALL = td3.TD3Config(hidden=(32, 32), batch_size=64)
 

@@ -4,8 +4,9 @@ import jax
 import jax.numpy as jp
 import numpy as np
 
-from nonmono_jax import hierarchy, methods, numbers, ppo
-from nonmono_jax.top import Horizon, make_top
+from nonmono_jax.core import hierarchy, numbers, ppo
+from nonmono_jax.host import methods
+from nonmono_jax.core.top import Horizon, make_top
 
 OBS = 4
 TARGET = (0.0, 19.0, 0.5)

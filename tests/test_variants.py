@@ -8,9 +8,10 @@ import numpy as np
 import pytest
 
 import envs
-from nonmono_jax import methods, numbers, run, sinks, train
-from nonmono_jax.config import AgentConfig, check_group
-from nonmono_jax import plan as plan_lib
+from nonmono_jax.core import numbers, train
+from nonmono_jax.host import methods, run, sinks
+from nonmono_jax.core.config import AgentConfig, check_group
+from nonmono_jax.host import plan as plan_lib
 from tests.tests_support import TINY_OVERRIDES
 
 # Past warm-up (100) and the starting mode (100) the Top trains at steps 399 and 799.

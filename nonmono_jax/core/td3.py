@@ -26,8 +26,8 @@ import jax.numpy as jp
 import optax
 from flax import struct
 
-from nonmono_jax import learning, networks
-from nonmono_jax.numbers import Numbers, traced
+from nonmono_jax.core import learning, networks
+from nonmono_jax.core.numbers import Numbers, traced
 
 
 @dataclasses.dataclass(frozen=True)

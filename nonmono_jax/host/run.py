@@ -1,6 +1,6 @@
 """A run as a library: make or load its plan, hold its folder, train its methods chunk by chunk.
 
-    from nonmono_jax import run, sinks
+    from nonmono_jax.host import run, sinks
     plan = run.new_run("PointMaze", ["ours"], preset="quick", out="runs/pm")  # or run.load_run(dir)
     with run.open_folder(plan):                                # created, locked, config.json
       outputs = [sinks.MetricsCsv(plan.out), sinks.JsonLines(plan.out)]
@@ -30,10 +30,10 @@ import time
 import jax
 import numpy as np
 
-from nonmono_jax import io, processes, runlock
-from nonmono_jax.programs import Programs
-from nonmono_jax.plan import Plan, load_run, new_run  # noqa: F401 - the run's library entry points
-from nonmono_jax.plan import to_json
+from nonmono_jax.host import io, processes, runlock
+from nonmono_jax.host.programs import Programs
+from nonmono_jax.host.plan import Plan, load_run, new_run  # noqa: F401 - the run's library entry points
+from nonmono_jax.host.plan import to_json
 
 
 class NonFinite(RuntimeError):
@@ -199,7 +199,7 @@ def run_plan(plan: Plan, outputs, clock: Clock | None = None, log=print,
 
 def run_method(plan: Plan, method: str, outputs=(), clock: Clock | None = None, log=print,
                programs: Programs | None = None):
-  """Trains one variant alone (its numbers compiled in); see ``run_group``."""
+  """Trains one variant alone (a group of one); see ``run_group``."""
   return run_group(plan, [method], outputs, clock, log, programs)
 
 

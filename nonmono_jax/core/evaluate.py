@@ -17,7 +17,7 @@ import jax
 import jax.numpy as jp
 
 from envs import rollout
-from nonmono_jax import hierarchy
+from nonmono_jax.core import hierarchy
 
 
 def make_episode(env, c: int, low_act: Callable, middle_act: Callable) -> Callable:

@@ -31,9 +31,9 @@ import jax
 import jax.numpy as jp
 from flax import struct
 
-from nonmono_jax import buffers, hierarchy, learning, ppo, relabel, td3
-from nonmono_jax.config import AgentConfig
-from nonmono_jax.numbers import Numbers
+from nonmono_jax.core import buffers, hierarchy, learning, ppo, relabel, td3
+from nonmono_jax.core.config import AgentConfig
+from nonmono_jax.core.numbers import Numbers
 
 
 @struct.dataclass

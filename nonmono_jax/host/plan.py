@@ -34,9 +34,10 @@ import jax
 
 import envs
 from envs import ant_maze
-from nonmono_jax import io, methods, numbers, validation
-from nonmono_jax.config import AgentConfig, config_from_dict, differences, flatten, get
-from nonmono_jax.config import missing_fields, override
+from nonmono_jax.core import numbers, validation
+from nonmono_jax.host import io, methods
+from nonmono_jax.core.config import AgentConfig, config_from_dict, differences, flatten, get
+from nonmono_jax.core.config import missing_fields, override
 
 PACKAGES = ("jax", "jaxlib", "mujoco", "mujoco-mjx", "brax", "flax", "optax", "orbax-checkpoint",
             "numpy", "nonmono-jax")

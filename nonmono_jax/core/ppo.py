@@ -42,8 +42,8 @@ import jax.numpy as jp
 import optax
 from flax import struct
 
-from nonmono_jax import learning, networks
-from nonmono_jax.numbers import Numbers, traced
+from nonmono_jax.core import learning, networks
+from nonmono_jax.core.numbers import Numbers, traced
 
 _RETURN_EPS = 1e-7  # the port's normaliser epsilon
 _LOG_2PI_E = math.log(2.0 * math.pi * math.e)

@@ -32,12 +32,12 @@ import jax
 import jax.numpy as jp
 from flax import struct
 
-from nonmono_jax import hierarchy, ppo, td3
-from nonmono_jax import metrics as metrics_lib
-from nonmono_jax.config import AgentConfig
-from nonmono_jax.gates import gated
-from nonmono_jax.switch import TriggerState, make_informed_switch
-from nonmono_jax.top import Horizon, make_top
+from nonmono_jax.core import hierarchy, ppo, td3
+from nonmono_jax.core import metrics as metrics_lib
+from nonmono_jax.core.config import AgentConfig
+from nonmono_jax.core.gates import gated
+from nonmono_jax.core.switch import TriggerState, make_informed_switch
+from nonmono_jax.core.top import Horizon, make_top
 
 N_MODES = len(hierarchy.MODES)
 

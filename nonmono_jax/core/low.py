@@ -16,8 +16,8 @@ from typing import Callable
 import jax
 import jax.numpy as jp
 
-from nonmono_jax import buffers, hierarchy, learning, td3
-from nonmono_jax.numbers import Numbers
+from nonmono_jax.core import buffers, hierarchy, learning, td3
+from nonmono_jax.core.numbers import Numbers
 
 
 @dataclasses.dataclass(frozen=True)

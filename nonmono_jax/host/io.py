@@ -33,7 +33,8 @@ import numpy as np
 import orbax.checkpoint as ocp
 from flax import struct
 
-from nonmono_jax import hierarchy, processes
+from nonmono_jax.core import hierarchy
+from nonmono_jax.host import processes
 
 LOSSES = ("low/critic_loss", "low/actor_loss", "middle/critic_loss", "middle/actor_loss",
           "middle_ppo/loss", "top/loss")

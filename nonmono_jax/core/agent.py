@@ -34,14 +34,14 @@ import jax.numpy as jp
 from flax import struct
 
 from envs.base import MazeEnv, MazeState
-from nonmono_jax import buffers, hierarchy, modes, td3
-from nonmono_jax import evaluate as evaluate_lib
-from nonmono_jax.config import AgentConfig
-from nonmono_jax.gates import gated
-from nonmono_jax.numbers import Numbers
-from nonmono_jax.low import Low, make_low
-from nonmono_jax.metrics import Metric, level
-from nonmono_jax.middle import Explorer, Middle, NoExplorer, Segment, make_middle
+from nonmono_jax.core import buffers, hierarchy, modes, td3
+from nonmono_jax.core import evaluate as evaluate_lib
+from nonmono_jax.core.config import AgentConfig
+from nonmono_jax.core.gates import gated
+from nonmono_jax.core.numbers import Numbers
+from nonmono_jax.core.low import Low, make_low
+from nonmono_jax.core.metrics import Metric, level
+from nonmono_jax.core.middle import Explorer, Middle, NoExplorer, Segment, make_middle
 
 N_MODES = len(hierarchy.MODES)
 

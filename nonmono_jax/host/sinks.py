@@ -21,7 +21,8 @@ import os
 
 import numpy as np
 
-from nonmono_jax import hierarchy, io
+from nonmono_jax.core import hierarchy
+from nonmono_jax.host import io
 
 
 @contextlib.contextmanager

@@ -48,10 +48,10 @@ import jax.numpy as jp
 import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec as P
 
-from nonmono_jax import agent as agent_lib
-from nonmono_jax import numbers
-from nonmono_jax import metrics as metrics_lib
-from nonmono_jax.config import check_group
+from nonmono_jax.core import agent as agent_lib
+from nonmono_jax.core import numbers
+from nonmono_jax.core import metrics as metrics_lib
+from nonmono_jax.core.config import check_group
 
 
 @dataclasses.dataclass(frozen=True)

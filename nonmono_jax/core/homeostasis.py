@@ -30,7 +30,7 @@ import jax
 import jax.numpy as jp
 from flax import struct
 
-from nonmono_jax.numbers import traced
+from nonmono_jax.core.numbers import traced
 
 EPS = 1e-8  # floor of the standard deviation: x2bar is 0 at the first step and on a constant x
 MAX_Z = 50.0  # cap of the standardised excess, so exp never overflows to inf (inf/inf = NaN)

@@ -13,15 +13,15 @@ import os
 import jax
 import numpy as np
 
-from nonmono_jax import train
-from nonmono_jax.plan import Plan
+from nonmono_jax.core import train
+from nonmono_jax.host.plan import Plan
 
 EVAL_RECORD_BYTES = 64  # an evaluation step's record (position, goal, blocks, success), about
 
 
 class Programs:
-  """One trainer per group of variants of ``plan``, built on first use: one variant's numbers
-  as constants, a group's as lanes (``train.make_trainer`` / ``make_group_trainer``)."""
+  """One trainer per group of variants of ``plan`` (``train.make_group_trainer``: a variant
+  alone is a group of one), built on first use."""
 
   def __init__(self, plan: Plan):
     self.plan = plan
@@ -33,9 +33,8 @@ class Programs:
       plan = self.plan
       env = plan.env()
       size = {"num_seeds": plan.spec.seeds, "chunk_steps": plan.spec.chunk}
-      self._trainers[names] = (
-          train.make_trainer(env, plan.configs[names[0]], **size) if len(names) == 1 else
-          train.make_group_trainer(env, [plan.configs[n] for n in names], **size))
+      self._trainers[names] = train.make_group_trainer(env, [plan.configs[n] for n in names],
+                                                       **size)
     return self._trainers[names]
 
 

@@ -24,10 +24,10 @@ import jax
 import jax.numpy as jp
 from flax import struct
 
-from nonmono_jax import buffers, hierarchy, ppo
-from nonmono_jax.config import TopConfig
-from nonmono_jax import numbers
-from nonmono_jax.numbers import Numbers
+from nonmono_jax.core import buffers, hierarchy, ppo
+from nonmono_jax.core.config import TopConfig
+from nonmono_jax.core import numbers
+from nonmono_jax.core.numbers import Numbers
 
 
 @struct.dataclass

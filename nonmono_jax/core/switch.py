@@ -43,7 +43,7 @@ import jax
 import jax.numpy as jp
 from flax import struct
 
-from nonmono_jax import hierarchy, homeostasis
+from nonmono_jax.core import hierarchy, homeostasis
 
 
 @struct.dataclass

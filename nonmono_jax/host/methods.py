@@ -31,7 +31,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Any, Mapping
 
-from nonmono_jax.config import AgentConfig, merge, override
+from nonmono_jax.core.config import AgentConfig, merge, override
 
 REF_PPO_EVERY = 40  # env steps between Ref:PPO's PPO updates in the paper's code (ours: 30)
 
@@ -126,11 +126,11 @@ def preset_overrides(method: str, task: str) -> dict:
   return merge(preset.agent, METHOD_OVERRIDES[method], rho)
 
 
-def make_config(method: str, task: str, overrides: Mapping[str, Any] | None = None,
-                **fields) -> AgentConfig:
-  """The AgentConfig of ``method`` on ``task``, then ``overrides`` (dotted paths) and
-  ``fields`` (top-level AgentConfig fields, the same as paths without a dot)."""
-  return override(AgentConfig(), merge(preset_overrides(method, task), overrides or {}, fields))
+def make_config(method: str, task: str, overrides: Mapping[str, Any] | None = None
+                ) -> AgentConfig:
+  """The AgentConfig of ``method`` on ``task``, then ``overrides`` (dotted paths, the one way
+  to change a config: ``{"c": 5, "top.alpha": (0, 0.4, 0.7)}``)."""
+  return override(AgentConfig(), merge(preset_overrides(method, task), overrides or {}))
 
 
 def size_buffers(config: AgentConfig, steps: int) -> AgentConfig:

@@ -25,8 +25,8 @@ import dataclasses
 import typing
 from typing import Any, Mapping
 
-from nonmono_jax import hierarchy, homeostasis, numbers, ppo, td3, validation
-from nonmono_jax.numbers import traced
+from nonmono_jax.core import hierarchy, homeostasis, numbers, ppo, td3, validation
+from nonmono_jax.core.numbers import traced
 
 SWITCHES = ("none", "top", "homeostasis")  # HIRO / ours / Ref:Uniform and Ref:PPO
 EXPLORE_MODES = ("ppo", "random")  # the explore mode of the homeostasis switch
