@@ -12,7 +12,7 @@ from experiments import cli
 from nonmono_jax.core import config as config_lib
 from nonmono_jax.core import td3
 from nonmono_jax.host import io, methods, plan as plan_lib, run, sinks
-from tests_support import TINY_OVERRIDES, TINY_RUN, TINY_SIZE
+from tests_support import ROOT, TINY_OVERRIDES, TINY_RUN, TINY_SIZE
 
 
 # --- one way to override ------------------------------------------------------------------------
@@ -210,6 +210,36 @@ def test_an_old_run_folder_resumes_plots_and_renders_with_a_warning(old_run, pre
   assert plot.main([out, "--out", str(tmp_path / "fig")]) == 0
   roll = render.rollout(out, "ours", 1)
   assert roll["step"] == 800 and roll["pos"].shape == (101, 3) and roll["warnings"]
+
+
+# A run folder as the code of 2026-12-02 wrote it (the command is in its config.json: ours and
+# HIRO, TINY_RUN), its last checkpoints (800) removed: stopped at 600 of 800 steps.
+FOLDER_2026_12_02 = os.path.join(ROOT, "tests", "data", "run_2026-12-02")
+
+
+@pytest.mark.slow
+def test_a_run_folder_of_2026_12_02_loads_resumes_plots_and_renders(tmp_path, capsys):
+  """Every later version must read this committed folder: it loads, resumes to its end (the
+  rows it had up to its checkpoint kept as they were), plots and renders."""
+  import shutil
+  from experiments import plot, render
+
+  out = str(tmp_path / "run")
+  shutil.copytree(FOLDER_2026_12_02, out)
+  committed = {(r["method"], r["seed"], r["env_step"]): r
+               for r in io.MetricsFile(os.path.join(out, "metrics.csv")).read()}
+  assert run.load_run(out).configs["ours"].top.starting_steps == 100
+  assert cli.main("PointMaze", ["--resume", out, "--no-progress"]) == 0
+  assert "resumed from step 600" in capsys.readouterr().out
+  rows = io.MetricsFile(os.path.join(out, "metrics.csv")).read()
+  keys = {(r["method"], r["seed"], r["env_step"]): r for r in rows}
+  assert len(rows) == len(keys) == len(committed) == 2 * 2 * 4  # methods x seeds x chunks
+  assert set(keys) == set(committed)
+  for key, row in keys.items():
+    if int(key[2]) <= 600:
+      assert row == committed[key], key
+  assert plot.main([out, "--out", str(tmp_path / "fig")]) == 0
+  assert render.rollout(out, "hiro", 0)["step"] == 800
 
 
 def test_a_json_lines_file_drops_what_follows_the_checkpoint_on_resume(tmp_path):

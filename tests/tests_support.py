@@ -13,7 +13,7 @@ TINY_RUN = ["--preset", "quick", "--seeds", "2", "--steps", "800", "--chunk", "2
             "--low.hidden", "16", "16", "--middle.hidden", "16", "16", "--low.batch_size", "8",
             "--middle.batch_size", "8", "--middle_ppo.hidden", "16", "--top.ppo.hidden", "16",
             "--no-progress"]
-# The same through the run library (nonmono_jax.host.run.new_run): the run's size and dotted overrides.
+# The same through the run library (nonmono_jax.host.run.new_run): run size, dotted overrides.
 TINY_SIZE = {"seeds": 2, "steps": 800, "chunk": 200, "checkpoint_every": 200,
              "episode_length": 100}
 TINY_OVERRIDES = {"warmup_steps": 100, "top.starting_steps": 100, "eval_every": 200,
