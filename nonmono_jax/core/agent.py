@@ -18,10 +18,10 @@ in the phases of ``step``:
 
 The numbers a variant may change (the config fields declared ``traced``: alpha, S_O, the Top's
 two switches, rho, the goal noise, the learners' rates; ``numbers.py``) are read from ``hp``,
-the lane's ``Numbers``: ``step(state, t, hp)``, ``hp = numbers.of(config)``. Every gate is a function of the global step
-``t``, which is not batched over seeds, so each stays a real ``lax.cond`` under ``vmap``
-(docs/spec.md, section 6); only per-env data (modes, explore periods) is batched. Metrics are
-``metrics.Metric``s that declare their chunk reduction.
+the lane's ``Numbers``: ``step(state, t, hp)``, ``hp = numbers.of(config)``. Every gate is a
+function of the global step ``t``, which is not batched over seeds, so each stays a real
+``lax.cond`` under ``vmap`` (docs/spec.md, section 6); only per-env data (modes, explore
+periods) is batched. Metrics are ``metrics.Metric``s that declare their chunk reduction.
 """
 
 from __future__ import annotations

@@ -252,8 +252,8 @@ def make_middle(obs_size: int, action_size: int, target, config: AgentConfig,
     return q.min(axis=0)
 
   def td3_update(state: td3.TD3State, buffer, low_params, key, t, hp: Numbers):
-    """``middle_updates`` TD3 updates (``hp`` the Middle TD3's numbers); with ``"sample"`` relabelling each batch is relabelled
-    under the current Low actor (``low_params``) first."""
+    """``middle_updates`` TD3 updates (``hp`` the Middle TD3's numbers); with ``"sample"``
+    relabelling each batch is relabelled under the current Low actor (``low_params``) first."""
     cfg = config.middle
 
     def one(state, i):
