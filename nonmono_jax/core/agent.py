@@ -204,7 +204,7 @@ def _init(p: _Parts, key) -> SeedState:
   chooser, mode = p.chooser.init(keys, env_state.obs, middle.params)
   state = SeedState(
       env=env_state, low=p.low.td3.init(keys.low), middle=middle,
-      middle_ppo=p.middle.explorer.init(keys.middle_ppo, E), chooser=chooser,
+      middle_ppo=p.middle.init_explorer(keys.middle_ppo, E), chooser=chooser,
       low_buffer=p.low.init_buffer(), middle_buffer=p.middle.init_buffer(),
       goal=jp.zeros((E, hierarchy.GOAL_SIZE)),
       segment=jax.vmap(p.middle.new_segment)(env_state.obs, jp.zeros((E, hierarchy.GOAL_SIZE)),

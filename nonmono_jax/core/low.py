@@ -11,8 +11,6 @@
 from __future__ import annotations
 
 import dataclasses
-from typing import Callable
-
 import jax
 import jax.numpy as jp
 
@@ -20,50 +18,58 @@ from nonmono_jax.core import buffers, hierarchy, learning, td3
 from nonmono_jax.core.numbers import Numbers
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(frozen=True, eq=False)  # identity: it holds arrays
 class Low:
+  """The Low's functions (``make_low`` builds it); its state is a ``td3.TD3State`` and a
+  ``buffers.ReplayBuffer`` of ``td3.Transition``s in the agent's ``SeedState``."""
+
   td3: td3.TD3
-  init_buffer: Callable[[], buffers.ReplayBuffer]
-  act: Callable[..., jax.Array]
-  transition: Callable[..., td3.Transition]
-  update: Callable[..., tuple[td3.TD3State, dict]]
+  config: td3.TD3Config
+  obs_size: int
+  action_size: int
+  limit: jax.Array  # (action_size,) the torque (or velocity) limit
+  updates: int = 1  # TD3 updates per env step
+  done_goal: str = "next"  # done_L on g' ("next") or on g ("current", the paper's code)
 
-
-def make_low(obs_size: int, action_size: int, action_limit, config: td3.TD3Config,
-             updates: int = 1, done_goal: str = "next") -> Low:
-  k = hierarchy.GOAL_SIZE
-  learner = td3.make_td3(obs_size, k, action_size, action_limit, config)
-  lim = jp.broadcast_to(jp.asarray(action_limit, jp.float32), (action_size,))
-
-  def act(params, obs, goal, key, warm, hp: Numbers):
+  def act(self, params: td3.TD3Params, obs, goal, key, warm, hp: Numbers) -> jax.Array:
     """The behaviour action: uniform during warm-up, else pi_L plus Gaussian noise (std
     ``hp.expl_noise``)."""
     k1, k2 = jax.random.split(key)
-    random = jax.random.uniform(k1, (action_size,), minval=-lim, maxval=lim)
-    return jp.where(warm, random, learner.explore(params, obs, goal, k2, hp.expl_noise))
+    random = jax.random.uniform(k1, (self.action_size,), minval=-self.limit, maxval=self.limit)
+    return jp.where(warm, random, self.td3.explore(params, obs, goal, k2, hp.expl_noise))
 
-  def transition(s, g, a, s_next):
+  def transition(self, s, g, a, s_next) -> td3.Transition:
+    """(s, g, a, r_L, s', g', done_L) of one env step."""
     g_next = hierarchy.goal_transition(s, g, s_next)
     return td3.Transition(obs=s, context=g, action=a,
                           reward=hierarchy.low_reward(s, g, s_next), next_obs=s_next,
                           next_context=g_next,
-                          done=hierarchy.low_done(g_next if done_goal == "next" else g))
+                          done=hierarchy.low_done(g_next if self.done_goal == "next" else g))
 
-  def update(state: td3.TD3State, buffer: buffers.ReplayBuffer, key, t, hp: Numbers):
+  def update(self, state: td3.TD3State, buffer: buffers.ReplayBuffer, key, t,
+             hp: Numbers) -> tuple[td3.TD3State, dict]:
     """``updates`` TD3 updates on batches from the Low buffer; metrics of the last."""
+    config, updates = self.config, self.updates
 
     def one(state, i):
       kb, ku = jax.random.split(jax.random.fold_in(key, i))
       batch = buffers.sample(buffer, kb, config.batch_size)
       n = t * updates + i  # the update counter: the delayed actor's clock
-      return learner.update(state, batch, ku, n % config.policy_delay == 0, hp)
+      return self.td3.update(state, batch, ku, n % config.policy_delay == 0, hp)
 
     return learning.repeat(one, state, updates)
 
-  def init_buffer():
+  def init_buffer(self) -> buffers.ReplayBuffer:
     vec = lambda n: jax.ShapeDtypeStruct((n,), jp.float32)
-    example = jax.eval_shape(transition, vec(obs_size), vec(k), vec(action_size), vec(obs_size))
-    return buffers.init(example, config.buffer_size)
+    n = self.obs_size
+    example = jax.eval_shape(self.transition, vec(n), vec(hierarchy.GOAL_SIZE),
+                             vec(self.action_size), vec(n))
+    return buffers.init(example, self.config.buffer_size)
 
-  return Low(td3=learner, init_buffer=init_buffer,
-             act=act, transition=transition, update=update)
+
+def make_low(obs_size: int, action_size: int, action_limit, config: td3.TD3Config,
+             updates: int = 1, done_goal: str = "next") -> Low:
+  learner = td3.make_td3(obs_size, hierarchy.GOAL_SIZE, action_size, action_limit, config)
+  lim = jp.broadcast_to(jp.asarray(action_limit, jp.float32), (action_size,))
+  return Low(td3=learner, config=config, obs_size=obs_size, action_size=action_size, limit=lim,
+             updates=updates, done_goal=done_goal)

@@ -68,22 +68,20 @@ class NoExplorer:
     return {}
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(frozen=True, eq=False)  # identity: it holds arrays
 class PPOExplorer:
   """The Middle PPO as a sub-policy (``make_middle`` builds it): its goal proposals, what it
   stores of a segment, its learning. ``Idle`` is the same for a method without one."""
 
   ppo: ppo.PPO
   config: AgentConfig
-  init_rollout: Callable[[], ppo.Rollout]
   trains = True
 
   def std(self, t):
     return ppo.gaussian_std(t, self.config.middle_ppo)
 
-  def init(self, key, num_envs) -> Explorer:
-    """The learner (from ``key``) and an empty rollout per env."""
-    rollout = jax.vmap(lambda _: self.init_rollout())(jp.arange(num_envs))
+  def init(self, key, rollout: ppo.Rollout) -> Explorer:
+    """The learner (from ``key``) and the empty ``rollout`` (E, middle_ppo_every / c)."""
     return Explorer(learner=self.ppo.init(key), rollout=rollout)
 
   def params(self, state: Explorer):
@@ -124,7 +122,7 @@ class Idle:
   def std(self, t):
     return jp.zeros(())
 
-  def init(self, key, num_envs) -> NoExplorer:
+  def init(self, key, rollout) -> NoExplorer:
     return NoExplorer()
 
   def params(self, state):
@@ -143,41 +141,29 @@ class Idle:
     return state, {}
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(frozen=True, eq=False)  # identity: it holds arrays
 class Middle:
+  """The Middle's functions (``make_middle`` builds it): goals from the three sub-policies,
+  segments, the Middle TD3 and its buffer; the Middle PPO is ``explorer``."""
+
+  config: AgentConfig
   td3: td3.TD3
   explorer: PPOExplorer | Idle  # the Middle PPO, or Idle where the method has none
-  init_buffer: Callable[[], buffers.ReplayBuffer]
-  init_rollout: Callable[[], ppo.Rollout]
-  goal: Callable[..., tuple[jax.Array, jax.Array]]
-  new_segment: Callable[..., Segment]
-  record: Callable[..., Segment]
-  close: Callable[..., tuple[dict, ppo.Rollout]]
-  value: Callable[..., jax.Array]
-  td3_update: Callable[..., tuple[td3.TD3State, dict]]
-  policy: Callable[..., jax.Array]  # (td3 params, obs) -> the noiseless Middle TD3 goal
+  obs_size: int
+  action_size: int
+  target: jax.Array  # (3,) the task's target
+  goal_range: jax.Array  # (3,) goals within +-goal_range
+  context: jax.Array  # what the Middle TD3 sees besides s: the target, or (0,) (paper's code)
+  low_act: Callable[..., jax.Array]  # the Low's noiseless actor (params, obs, goal) -> a
 
+  def random_goal(self, key) -> jax.Array:
+    k, r = hierarchy.GOAL_SIZE, self.goal_range
+    if self.config.random_goal == "uniform":
+      return jax.random.uniform(key, (k,), minval=-r, maxval=r)
+    return jp.clip(jax.random.normal(key, (k,)) * r, -r, r)
 
-def make_middle(obs_size: int, action_size: int, target, config: AgentConfig,
-                low_act: Callable) -> Middle:
-  """The Middle's functions; ``low_act(low_params, obs, goal)`` is the Low's noiseless actor
-  (HIRO's relabelling explains the stored low actions with it)."""
-  k, c = hierarchy.GOAL_SIZE, config.c
-  goal_range = jp.asarray(config.goal_range, jp.float32)
-  target = jp.asarray(target, jp.float32)
-  # What the Middle TD3 sees besides s: the target, or nothing (the paper's code)
-  context = target if config.middle_td3_input == "state_target" else jp.zeros((0,), jp.float32)
-  learner = td3.make_td3(obs_size, context.shape[0], k, goal_range, config.middle)
-  ends_returns = 0.0 if config.returns_cross_episodes else 1.0
-  n_rollout = config.middle_rollout_length
-  at_store = config.middle_relabel == "store"
-
-  def random_goal(key):
-    if config.random_goal == "uniform":
-      return jax.random.uniform(key, (k,), minval=-goal_range, maxval=goal_range)
-    return jp.clip(jax.random.normal(key, (k,)) * goal_range, -goal_range, goal_range)
-
-  def goal(td3_params, ppo_params, obs, mode, key, warm, t, noise):
+  def goal(self, td3_params: td3.TD3Params, ppo_params, obs, mode, key, warm, t,
+           noise) -> tuple[jax.Array, jax.Array, jax.Array]:
     """(goal, PPO action to store, its log pi_PPO) from the sub-policy ``mode``; ``noise``
     the std on TD3 goals (the lane's ``middle_goal_noise``).
 
@@ -185,94 +171,123 @@ def make_middle(obs_size: int, action_size: int, target, config: AgentConfig,
     code) or the executed goal ("executed").
     """
     k1, k2, k3 = jax.random.split(key, 3)
-    g_random = random_goal(k1)
-    g_td3 = learner.explore(td3_params, obs, context, k2, noise)
-    ppo_obs = jp.concatenate([obs, target])
-    proposal = explorer.propose(ppo_params, ppo_obs, k3, t)
-    g_ppo = jp.clip(proposal[0], -goal_range, goal_range)
+    g_random = self.random_goal(k1)
+    g_td3 = self.td3.explore(td3_params, obs, self.context, k2, noise)
+    ppo_obs = jp.concatenate([obs, self.target])
+    proposal = self.explorer.propose(ppo_params, ppo_obs, k3, t)
+    g_ppo = jp.clip(proposal[0], -self.goal_range, self.goal_range)
     g = jp.select([warm | (mode == hierarchy.RANDOM), mode == hierarchy.PPO],
                   [g_random, g_ppo], g_td3)
-    return (g, *explorer.stored(ppo_params, ppo_obs, g, proposal, t))
+    return (g, *self.explorer.stored(ppo_params, ppo_obs, g, proposal, t))
 
-  def new_segment(obs, g, ppo_action, log_prob):
-    return Segment(obs=jp.zeros((c + 1, obs_size)).at[0].set(obs),
-                   actions=jp.zeros((c, action_size)), rewards=jp.zeros((c,)),
+  def new_segment(self, obs, g, ppo_action, log_prob) -> Segment:
+    c = self.config.c
+    return Segment(obs=jp.zeros((c + 1, self.obs_size)).at[0].set(obs),
+                   actions=jp.zeros((c, self.action_size)), rewards=jp.zeros((c,)),
                    success=jp.zeros(()), goal=g, ppo_action=ppo_action, log_prob=log_prob)
 
-  def record(seg: Segment, i, a, s_next, reward, success):
+  def record(self, seg: Segment, i, a, s_next, reward, success) -> Segment:
     """Step ``i`` of the segment: action a_i, then s_{i+1}, the task reward and success."""
     return seg.replace(obs=seg.obs.at[i + 1].set(s_next), actions=seg.actions.at[i].set(a),
                        rewards=seg.rewards.at[i].set(reward),
                        success=jp.asarray(success, jp.float32))
 
-  def relabelled(seg: Segment, low_params, key):
-    """HIRO's correction of the segment's goal under the Low's target actor (at store)."""
-    policy = lambda obs, g: low_act(low_params.replace(actor=low_params.target_actor), obs, g)
-    return relabel.relabel(key, policy, seg.obs, seg.actions, seg.goal, goal_range)[0]
+  @property
+  def relabels_at_store(self) -> bool:
+    return self.config.middle_relabel == "store"
 
-  def pack(seg: Segment, g, episode_end):
+  def relabelled(self, seg: Segment, low_params: td3.TD3Params, key) -> jax.Array:
+    """HIRO's correction of the segment's goal under the Low's target actor (at store)."""
+    policy = lambda obs, g: self.low_act(low_params.replace(actor=low_params.target_actor),
+                                         obs, g)
+    return relabel.relabel(key, policy, seg.obs, seg.actions, seg.goal, self.goal_range)[0]
+
+  def pack(self, seg: Segment, g, episode_end) -> tuple[dict, ppo.Rollout]:
     """The Middle TD3 buffer item (goal ``g``) and the Middle PPO rollout step of a segment."""
+    c, context = self.config.c, self.context
     reward = hierarchy.middle_reward(seg.rewards)
     tr = td3.Transition(obs=seg.obs[0], context=context, action=g, reward=reward,
                         next_obs=seg.obs[c], next_context=context, done=seg.success)
-    item = {"transition": tr} if at_store else {"transition": tr, "states": seg.obs,
-                                                "actions": seg.actions}
-    step = ppo.Rollout(obs=jp.concatenate([seg.obs[0], target]), action=seg.ppo_action,
-                       log_prob=seg.log_prob, reward=reward,
-                       done=jp.maximum(seg.success, ends_returns * jp.asarray(episode_end,
-                                                                             jp.float32)))
+    item = ({"transition": tr} if self.relabels_at_store else
+            {"transition": tr, "states": seg.obs, "actions": seg.actions})
+    ends_returns = 0.0 if self.config.returns_cross_episodes else 1.0
+    done = jp.maximum(seg.success, ends_returns * jp.asarray(episode_end, jp.float32))
+    step = ppo.Rollout(obs=jp.concatenate([seg.obs[0], self.target]), action=seg.ppo_action,
+                       log_prob=seg.log_prob, reward=reward, done=done)
     return item, step
 
-  def close(seg: Segment, episode_end, low_params, key):
+  def close(self, seg: Segment, episode_end, low_params: td3.TD3Params,
+            key) -> tuple[dict, ppo.Rollout]:
     """The segment's buffer item, its goal relabelled at store (``"store"``), and PPO step."""
-    g = relabelled(seg, low_params, key) if at_store else seg.goal
-    return pack(seg, g, episode_end)
+    g = self.relabelled(seg, low_params, key) if self.relabels_at_store else seg.goal
+    return self.pack(seg, g, episode_end)
 
-  vec = lambda n: jax.ShapeDtypeStruct((n,), jp.float32)
-  example_segment = jax.eval_shape(new_segment, vec(obs_size), vec(k), vec(k),
-                                   jax.ShapeDtypeStruct((), jp.float32))
+  def _example_segment(self):
+    vec = lambda n: jax.ShapeDtypeStruct((n,), jp.float32)
+    k = hierarchy.GOAL_SIZE
+    return jax.eval_shape(self.new_segment, vec(self.obs_size), vec(k), vec(k),
+                          jax.ShapeDtypeStruct((), jp.float32)), vec(k)
 
-  def init_buffer():
-    item, _ = jax.eval_shape(pack, example_segment, vec(k), False)
-    return buffers.init(item, config.middle.buffer_size)
+  def init_buffer(self) -> buffers.ReplayBuffer:
+    segment, goal = self._example_segment()
+    item, _ = jax.eval_shape(self.pack, segment, goal, False)
+    return buffers.init(item, self.config.middle.buffer_size)
 
-  def init_rollout():
-    return buffers.template(lambda *a: pack(*a)[1], example_segment, vec(k), False,
-                            lead=(n_rollout,))
+  def init_rollout(self) -> ppo.Rollout:
+    """An empty Middle PPO rollout of one env (its steps are ``pack``'s)."""
+    segment, goal = self._example_segment()
+    return buffers.template(lambda *a: self.pack(*a)[1], segment, goal, False,
+                            lead=(self.config.middle_rollout_length,))
 
-  def policy(td3_params, obs):
+  def init_explorer(self, key, num_envs: int) -> Explorer | NoExplorer:
+    """The Middle PPO's state (nothing for ``Idle``): its learner and a rollout per env."""
+    rollout = jax.vmap(lambda _: self.init_rollout())(jp.arange(num_envs))
+    return self.explorer.init(key, rollout)
+
+  def policy(self, td3_params: td3.TD3Params, obs) -> jax.Array:
     """The noiseless Middle TD3 goal at s (towards the target)."""
-    return learner.act(td3_params, obs, context)
+    return self.td3.act(td3_params, obs, self.context)
 
-  def value(td3_params, obs):
+  def value(self, td3_params: td3.TD3Params, obs) -> jax.Array:
     """V(s) = min(Q1', Q2')(s, target, pi'_M(s, target)) with the target networks."""
-    tgt = jp.broadcast_to(context, obs.shape[:-1] + context.shape)
+    tgt = jp.broadcast_to(self.context, obs.shape[:-1] + self.context.shape)
     targets = td3_params.replace(actor=td3_params.target_actor)
-    q = learner.q_values(td3_params.target_critic, obs, tgt, learner.act(targets, obs, tgt))
+    q = self.td3.q_values(td3_params.target_critic, obs, tgt, self.td3.act(targets, obs, tgt))
     return q.min(axis=0)
 
-  def td3_update(state: td3.TD3State, buffer, low_params, key, t, hp: Numbers):
+  def td3_update(self, state: td3.TD3State, buffer, low_params: td3.TD3Params, key, t,
+                 hp: Numbers) -> tuple[td3.TD3State, dict]:
     """``middle_updates`` TD3 updates (``hp`` the Middle TD3's numbers); with ``"sample"``
     relabelling each batch is relabelled under the current Low actor (``low_params``) first."""
-    cfg = config.middle
+    config, cfg = self.config, self.config.middle
 
     def one(state, i):
       k1, k2, k3 = jax.random.split(jax.random.fold_in(key, i), 3)
       sample = buffers.sample(buffer, k1, cfg.batch_size)
       batch = sample["transition"]
-      if not at_store:
-        policy = lambda obs, g: low_act(low_params, obs, g)
-        goals, _ = jax.vmap(lambda kk, s, a, g: relabel.relabel(kk, policy, s, a, g, goal_range))(
-            jax.random.split(k2, cfg.batch_size), sample["states"], sample["actions"],
-            batch.action)
+      if not self.relabels_at_store:
+        policy = lambda obs, g: self.low_act(low_params, obs, g)
+        relabelled = lambda kk, s, a, g: relabel.relabel(kk, policy, s, a, g, self.goal_range)
+        goals, _ = jax.vmap(relabelled)(jax.random.split(k2, cfg.batch_size),
+                                        sample["states"], sample["actions"], batch.action)
         batch = batch.replace(action=goals)
-      n = (t // c) * config.middle_updates + i
-      return learner.update(state, batch, k3, n % cfg.policy_delay == 0, hp)
+      n = (t // config.c) * config.middle_updates + i
+      return self.td3.update(state, batch, k3, n % cfg.policy_delay == 0, hp)
 
     return learning.repeat(one, state, config.middle_updates)
 
-  explorer = (PPOExplorer(ppo.make_ppo(obs_size + k, k, config.middle_ppo, goal_range), config,
-                          init_rollout) if config.uses_middle_ppo else Idle())
-  return Middle(td3=learner, explorer=explorer, init_buffer=init_buffer,
-                init_rollout=init_rollout, goal=goal, new_segment=new_segment, record=record,
-                close=close, value=value, td3_update=td3_update, policy=policy)
+
+def make_middle(obs_size: int, action_size: int, target, config: AgentConfig,
+                low_act: Callable) -> Middle:
+  """The Middle; ``low_act(low_params, obs, goal)`` is the Low's noiseless actor (HIRO's
+  relabelling explains the stored low actions with it)."""
+  k = hierarchy.GOAL_SIZE
+  goal_range = jp.asarray(config.goal_range, jp.float32)
+  target = jp.asarray(target, jp.float32)
+  context = target if config.middle_td3_input == "state_target" else jp.zeros((0,), jp.float32)
+  learner = td3.make_td3(obs_size, context.shape[0], k, goal_range, config.middle)
+  explorer = (PPOExplorer(ppo.make_ppo(obs_size + k, k, config.middle_ppo, goal_range), config)
+              if config.uses_middle_ppo else Idle())
+  return Middle(config=config, td3=learner, explorer=explorer, obs_size=obs_size,
+                action_size=action_size, target=target, goal_range=goal_range, context=context,
+                low_act=low_act)
