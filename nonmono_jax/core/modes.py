@@ -7,8 +7,9 @@ By ``AgentConfig.switch``:
     "homeostasis"  Ref:Uniform / Ref:PPO: the informed trigger at Middle decisions
                    (switch.py); the explore mode in the starting mode (``TriggerState``)
 
-A chooser owns its state (``SeedState.chooser``: ``Fixed``, ``TopState`` or the trigger's
-``TriggerState``, per env) and four pure functions:
+A chooser (the ``ModeChooser`` protocol: ``FixedChooser``, ``TopChooser``, ``TriggerChooser``)
+owns its state (``SeedState.chooser``: ``Fixed``, ``TopState`` or the trigger's
+``TriggerState``, per env) and four pure methods:
 
     init(keys, obs, middle_params) -> (state, mode)              the first segments' modes (E,)
     accumulate(state, reward, success) -> state                  every env step (R_m, Done_m)
@@ -26,7 +27,7 @@ trigger's rho): numbers read at run time, so variants of one program differ in t
 from __future__ import annotations
 
 import dataclasses
-from typing import Callable, Union
+from typing import Callable, Protocol, Union
 
 import jax
 import jax.numpy as jp
@@ -36,8 +37,9 @@ from nonmono_jax.core import hierarchy, ppo, td3
 from nonmono_jax.core import metrics as metrics_lib
 from nonmono_jax.core.config import AgentConfig
 from nonmono_jax.core.gates import gated
-from nonmono_jax.core.switch import TriggerState, make_informed_switch
-from nonmono_jax.core.top import Horizon, make_top
+from nonmono_jax.core.numbers import Numbers
+from nonmono_jax.core.switch import InformedSwitch, TriggerState, make_informed_switch
+from nonmono_jax.core.top import Horizon, Top, make_top
 
 N_MODES = len(hierarchy.MODES)
 
@@ -77,109 +79,128 @@ class TopState:
 ChooserState = Union[Fixed, TopState, TriggerState]  # what a seed's chooser holds (per env)
 
 
-@dataclasses.dataclass(frozen=True)
-class ModeChooser:
+class ModeChooser(Protocol):
+  """What a chooser is (module doc): its constants and four pure functions."""
+
   name: str  # "none", "top" or "homeostasis" (config.switch)
   starting_mode: int
   live_from: int  # warm-up + the starting mode: the first step of the chooser's own choices
-  init: Callable[..., tuple[ChooserState, jax.Array]]
-  accumulate: Callable[..., ChooserState]
-  decide: Callable[..., tuple[ChooserState, jax.Array, dict]]
-  update: Callable[..., tuple[ChooserState, dict]]
+
+  def init(self, keys, obs, middle_params) -> tuple[ChooserState, jax.Array]: ...
+  def accumulate(self, state: ChooserState, reward, success) -> ChooserState: ...
+  def decide(self, state: ChooserState, mode, decision: Decision, keys,
+             hp: Numbers) -> tuple[ChooserState, jax.Array, dict]: ...
+  def update(self, state: ChooserState, t, live, s_e, hp: Numbers
+             ) -> tuple[ChooserState, dict]: ...
 
 
-def _unchanged_accumulate(state, reward, success):
-  return state
+@dataclasses.dataclass(frozen=True)
+class FixedChooser:
+  """HIRO: TD3 goals always; no state, nothing to learn."""
 
+  num_envs: int
+  live_from: int
+  name = "none"
+  starting_mode = hierarchy.TD3
 
-def _no_update(state, t, live, s_e, hp):
-  return state, {}
+  def init(self, keys, obs, middle_params) -> tuple[Fixed, jax.Array]:
+    return Fixed(), jp.full((self.num_envs,), hierarchy.TD3, jp.int32)
 
+  def accumulate(self, state, reward, success):
+    return state
 
-def make_fixed(config: AgentConfig, num_envs: int) -> ModeChooser:
-  """HIRO: TD3 goals always."""
-
-  def init(keys, obs, middle_params):
-    return Fixed(), jp.full((num_envs,), hierarchy.TD3, jp.int32)
-
-  def decide(state, mode, decision, keys, hp):
+  def decide(self, state, mode, decision: Decision, keys, hp: Numbers):
     return state, mode, {}
 
-  return ModeChooser(name="none", starting_mode=hierarchy.TD3, live_from=config.warmup_steps,
-                     init=init, accumulate=_unchanged_accumulate, decide=decide,
-                     update=_no_update)
+  def update(self, state, t, live, s_e, hp: Numbers):
+    return state, {}
 
 
-def make_top_chooser(config: AgentConfig, obs_size: int, target, num_envs: int) -> ModeChooser:
+@dataclasses.dataclass(frozen=True, eq=False)  # identity: it holds arrays
+class TopChooser:
   """Ours: m ~ pi_T(s, target) per Top horizon; Top PPO every ``top.train_every`` steps."""
-  cfg, E = config.top, num_envs
-  top = make_top(obs_size, target, cfg, config.returns_cross_episodes)
-  live_from = config.warmup_steps + cfg.starting_steps
-  start = jax.vmap(top.start, in_axes=(None, 0, 0, None))
 
-  def init(keys, obs, middle_params):
-    learner = top.ppo.init(keys.top)
-    horizon = start(learner.params, obs, jax.random.split(keys.horizon, E), live_from > 0)
-    rollout = jax.vmap(lambda _: top.init_rollout())(jp.arange(E))
+  top: Top
+  num_envs: int
+  live_from: int  # warm-up + top.starting_steps
+  name = "top"
+  starting_mode = hierarchy.RANDOM
+
+  def _start(self, params, obs, key, forced) -> Horizon:
+    keys = jax.random.split(key, self.num_envs)
+    return jax.vmap(self.top.start, in_axes=(None, 0, 0, None))(params, obs, keys, forced)
+
+  def init(self, keys, obs, middle_params) -> tuple[TopState, jax.Array]:
+    learner = self.top.ppo.init(keys.top)
+    horizon = self._start(learner.params, obs, keys.horizon, self.live_from > 0)
+    rollout = jax.vmap(lambda _: self.top.init_rollout())(jp.arange(self.num_envs))
     return TopState(learner=learner, rollout=rollout, horizon=horizon), horizon.mode
 
-  def accumulate(state, reward, success):
-    return state.replace(horizon=jax.vmap(top.accumulate)(state.horizon, reward, success))
+  def accumulate(self, state: TopState, reward, success) -> TopState:
+    return state.replace(horizon=jax.vmap(self.top.accumulate)(state.horizon, reward, success))
 
-  def mode_probs(params, obs):
+  def mode_probs(self, params, obs) -> jax.Array:
     """pi_T(m | s_0, target) per mode, averaged over the envs."""
-    logp = lambda x: jax.vmap(lambda a: top.ppo.log_prob(params, x, a, None))(jp.arange(N_MODES))
-    return jax.vmap(lambda x: jp.exp(logp(x)))(obs).mean(0)
+    log_prob = lambda x, a: self.top.ppo.log_prob(params, x, a, None)
+    per_env = lambda x: jp.exp(jax.vmap(lambda a: log_prob(x, a))(jp.arange(N_MODES)))
+    return jax.vmap(per_env)(obs).mean(0)
 
-  def decide(state, mode, d: Decision, keys, hp):
+  def decide(self, state: TopState, mode, d: Decision, keys, hp: Numbers):
     """At a horizon's end: the Top transition, and the Top picks the next g_expl_mode."""
-    H = cfg.horizon
-    horizon_end = d.t % H == H - 1
+    H, top = self.top.config.horizon, self.top
 
     def end_horizon(operand):
       state, _ = operand
       tr, m = jax.vmap(top.close, in_axes=(0, None, None, None))(
-          state.horizon, d.t + 1 - H < live_from, d.episode_end, hp.top)
-      slot = (d.t // H) % cfg.rollout_length
+          state.horizon, d.t + 1 - H < self.live_from, d.episode_end, hp.top)
+      slot = (d.t // H) % top.config.rollout_length
       rollout = jax.tree.map(lambda r, x: r.at[:, slot].set(x), state.rollout, tr)
-      horizon = start(state.learner.params, d.obs, jax.random.split(keys.horizon, E),
-                      d.t + 1 < live_from)
-      probs = mode_probs(state.learner.params, horizon.obs)
+      horizon = self._start(state.learner.params, d.obs, keys.horizon,
+                            d.t + 1 < self.live_from)
+      probs = self.mode_probs(state.learner.params, horizon.obs)
       m = {k: v.mean() for k, v in m.items()}
       m.update({f"p_{name}": probs[j] for j, name in enumerate(hierarchy.MODES)})
       return (state.replace(rollout=rollout, horizon=horizon), horizon.mode), m
 
+    horizon_end = d.t % H == H - 1
     (state, mode), m = gated(horizon_end, end_horizon, (state, mode))
     return state, mode, metrics_lib.level("horizon", m, horizon_end)
 
-  def update(state, t, live, s_e, hp):
-    every = cfg.train_every
+  def update(self, state: TopState, t, live, s_e, hp: Numbers):
+    every = self.top.config.train_every
     ran = live & (t % every == every - 1)
 
     def train(state):
-      learner, m = top.update(state.learner, state.rollout, s_e, hp.top)
+      learner, m = self.top.update(state.learner, state.rollout, s_e, hp.top)
       return state.replace(learner=learner), m
 
     state, m = gated(ran, train, state)
     return state, metrics_lib.level("top", m, ran)
 
-  return ModeChooser(name="top", starting_mode=hierarchy.RANDOM, live_from=live_from,
-                     init=init, accumulate=accumulate, decide=decide, update=update)
 
+@dataclasses.dataclass(frozen=True, eq=False)  # identity: it holds arrays
+class TriggerChooser:
+  """Ref: the informed switch decides at every Middle decision; ``value(middle_params, obs)``
+  is the Middle's V (the trigger's signal)."""
 
-def make_trigger_chooser(config: AgentConfig, value: Callable, num_envs: int) -> ModeChooser:
-  """Ref: the informed switch decides every Middle decision; ``value(middle_params, obs)``."""
-  E, explore = num_envs, config.explore_mode_index
-  switch = make_informed_switch(config.homeostasis, explore, config.c)
-  live_from = config.warmup_steps + config.top.starting_steps
+  switch: InformedSwitch
+  value: Callable[..., jax.Array]
+  num_envs: int
+  live_from: int  # warm-up + top.starting_steps (the explore mode until then)
+  starting_mode: int  # the explore mode
+  name = "homeostasis"
 
-  def init(keys, obs, middle_params):
-    trigger = jax.vmap(switch.init)(value(middle_params, obs))
-    return trigger, jp.full((E,), explore if live_from > 0 else hierarchy.TD3, jp.int32)
+  def init(self, keys, obs, middle_params) -> tuple[TriggerState, jax.Array]:
+    trigger = jax.vmap(self.switch.init)(self.value(middle_params, obs))
+    first = self.starting_mode if self.live_from > 0 else hierarchy.TD3
+    return trigger, jp.full((self.num_envs,), first, jp.int32)
 
-  def decide(trigger, mode, d: Decision, keys, hp):
+  def accumulate(self, state, reward, success):
+    return state
+
+  def decide(self, trigger: TriggerState, mode, d: Decision, keys, hp: Numbers):
     """The trigger decides the next segment's mode (explore in the starting mode)."""
-    v = value(d.middle, d.s_c)
+    v, E, switch = self.value(d.middle, d.s_c), self.num_envs, self.switch
 
     def starting(trigger):
       return jax.vmap(switch.restart)(trigger, v), jp.zeros((E,), bool)
@@ -189,20 +210,25 @@ def make_trigger_chooser(config: AgentConfig, value: Callable, num_envs: int) ->
           trigger, v, d.reward, jax.random.split(keys.switch, E), hp.homeostasis.rho)
 
     # The window of the first exploit period starts at s_{live_from}.
-    trigger, switched = jax.lax.cond(d.t + 1 <= live_from, starting, deciding, trigger)
-    mode = jp.where(d.t + 1 < live_from, explore, jax.vmap(switch.mode)(trigger))
+    trigger, switched = jax.lax.cond(d.t + 1 <= self.live_from, starting, deciding, trigger)
+    mode = jp.where(d.t + 1 < self.live_from, self.starting_mode,
+                    jax.vmap(switch.mode)(trigger))
     return (trigger, mode.astype(jp.int32),
             {"switch/switches": metrics_lib.Metric.sum(switched.sum().astype(jp.float32))})
 
-  return ModeChooser(name="homeostasis", starting_mode=explore, live_from=live_from,
-                     init=init, accumulate=_unchanged_accumulate, decide=decide,
-                     update=_no_update)
+  def update(self, state, t, live, s_e, hp: Numbers):
+    return state, {}
 
 
 def make_chooser(config: AgentConfig, obs_size: int, target, value: Callable) -> ModeChooser:
-  """The chooser of ``config.switch`` ("none", "top" or "homeostasis")."""
+  """The chooser of ``config.switch`` ("none", "top" or "homeostasis"); ``value`` the
+  Middle's V for the trigger."""
+  E, starting = config.num_envs, config.warmup_steps + config.top.starting_steps
   if config.switch == "top":
-    return make_top_chooser(config, obs_size, target, config.num_envs)
+    top = make_top(obs_size, target, config.top, config.returns_cross_episodes)
+    return TopChooser(top=top, num_envs=E, live_from=starting)
   if config.switch == "homeostasis":
-    return make_trigger_chooser(config, value, config.num_envs)
-  return make_fixed(config, config.num_envs)
+    switch = make_informed_switch(config.homeostasis, config.explore_mode_index, config.c)
+    return TriggerChooser(switch=switch, value=value, num_envs=E, live_from=starting,
+                          starting_mode=config.explore_mode_index)
+  return FixedChooser(num_envs=E, live_from=config.warmup_steps)
