@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 import os
 
 import numpy as np
@@ -153,7 +154,7 @@ class Progress:
     total = max(sum(shares.values()), 1)
     status = (f"S_E {s_e:.2f} | " + " ".join(f"{m} {shares[m] / total:.0%}"
                                               for m in hierarchy.MODES)
-              + f" | {result.rate:.0f} env/s")
+              + ("" if math.isnan(result.rate) else f" | {result.rate:.0f} env/s"))
     if self.bar is not None:
       self.bar.set_postfix_str(status if len(self.group) == 1 else f"{result.method}: {status}",
                                refresh=False)
