@@ -133,15 +133,17 @@ def make_config(method: str, task: str, overrides: Mapping[str, Any] | None = No
   return override(AgentConfig(), merge(preset_overrides(method, task), overrides or {}))
 
 
-def size_buffers(config: AgentConfig, steps: int) -> AgentConfig:
-  """Replay buffers that hold a whole run of ``steps`` vector steps: nothing is evicted.
+def buffer_sizes(steps: int, c: int, num_envs: int) -> dict:
+  """The dotted buffer sizes that hold a whole run of ``steps`` vector steps: nothing is
+  evicted. The paper's buffers are append-only, sized for the run (6M Low transitions, 600K
+  Middle): the Low stores one transition per env step, the Middle one per c env steps."""
+  return {"low.buffer_size": max(steps * num_envs, 1),
+          "middle.buffer_size": max(-(-steps // c) * num_envs, 1)}
 
-  The paper's buffers are append-only, sized for the run (6M Low transitions, 600K Middle):
-  the Low stores one transition per env step, the Middle one per c env steps.
-  """
-  return override(config, {
-      "low.buffer_size": max(steps * config.num_envs, 1),
-      "middle.buffer_size": max(-(-steps // config.c) * config.num_envs, 1)})
+
+def size_buffers(config: AgentConfig, steps: int) -> AgentConfig:
+  """``config`` with replay buffers that hold a whole run of ``steps`` (``buffer_sizes``)."""
+  return override(config, buffer_sizes(steps, config.c, config.num_envs))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -172,21 +174,35 @@ PRESET_TABLE = {
 PRESETS = ("paper", "quick")
 
 
-def make_preset(preset: str, method: str, task: str) -> tuple[AgentConfig, RunSpec]:
-  """The agent config and run size of ``preset`` ("paper" or "quick") for method x task,
-  with replay buffers sized for the run."""
+def preset_layers(preset: str, method: str, task: str) -> tuple[dict, RunSpec]:
+  """The dotted overrides of ``preset`` ("paper" or "quick") for method x task (the task's,
+  the method's, the preset's) and the preset's run size."""
   if preset not in PRESETS:
     raise ValueError(f"preset must be one of {', '.join(PRESETS)}; got {preset!r}")
   agent, run = PRESET_TABLE[preset, TASKS[task].robot]
-  config = make_config(method, task, agent)
   t = TASKS[task]
   spec = RunSpec(**{"steps": t.total_steps, "episode_length": t.episode_length, **run})
-  return size_buffers(config, spec.steps), spec
+  return merge(preset_overrides(method, task), agent), spec
+
+
+def make_preset(preset: str, method: str, task: str) -> tuple[AgentConfig, RunSpec]:
+  """The agent config and run size of ``preset`` for method x task, with replay buffers sized
+  for the run."""
+  layers, spec = preset_layers(preset, method, task)
+  return size_buffers(override(AgentConfig(), layers), spec.steps), spec
 
 
 def widen(config: AgentConfig, spec: RunSpec, envs_per_seed: int,
           grad_steps: int | None = None) -> tuple[AgentConfig, RunSpec]:
-  """``envs_per_seed`` envs per seed at the same schedule and data use per *env* step.
+  """``config`` and ``spec`` widened (``widen_layer``), buffers sized for the run."""
+  layer, spec = widen_layer(config, spec, envs_per_seed, grad_steps)
+  return size_buffers(override(config, layer), spec.steps), spec
+
+
+def widen_layer(config: AgentConfig, spec: RunSpec, envs_per_seed: int,
+                grad_steps: int | None = None) -> tuple[dict, RunSpec]:
+  """The dotted overrides and run size that run ``envs_per_seed`` envs per seed at the same
+  schedule and data use per *env* step as ``config`` and ``spec`` with one.
 
   The paper runs one env per seed. To fill a GPU, a seed can run E envs, but ``num_envs``
   alone keeps every schedule in vector steps and one gradient step per vector step
@@ -216,16 +232,15 @@ def widen(config: AgentConfig, spec: RunSpec, envs_per_seed: int,
   def vec(n):  # env steps -> vector steps
     return -(-n // E)
 
-  config = override(config, {
+  layer = {
       "num_envs": E, "low_updates": U, "middle_updates": U,
       "low.batch_size": -(-config.low.batch_size * E // U),
       "middle.batch_size": -(-config.middle.batch_size * E // U),
       "warmup_steps": vec(config.warmup_steps), "eval_every": vec(config.eval_every),
       "top.starting_steps": vec(config.top.starting_steps),
       "top.ppo.std_decay_every": vec(config.top.ppo.std_decay_every),
-      "middle_ppo.std_decay_every": vec(config.middle_ppo.std_decay_every)})
+      "middle_ppo.std_decay_every": vec(config.middle_ppo.std_decay_every)}
   chunk = vec(spec.chunk)
   steps = -(-vec(spec.steps) // chunk) * chunk
   every = max(chunk, vec(spec.checkpoint_every) // chunk * chunk)
-  return size_buffers(config, steps), dataclasses.replace(spec, steps=steps, chunk=chunk,
-                                                          checkpoint_every=every)
+  return layer, dataclasses.replace(spec, steps=steps, chunk=chunk, checkpoint_every=every)

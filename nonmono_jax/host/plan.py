@@ -37,7 +37,7 @@ from envs import ant_maze
 from nonmono_jax.core import numbers, validation
 from nonmono_jax.host import io, methods
 from nonmono_jax.core.config import AgentConfig, config_from_dict, differences, flatten, get
-from nonmono_jax.core.config import missing_fields, override
+from nonmono_jax.core.config import merge, missing_fields, override
 
 PACKAGES = ("jax", "jaxlib", "mujoco", "mujoco-mjx", "brax", "flax", "optax", "orbax-checkpoint",
             "numpy", "nonmono-jax")
@@ -97,18 +97,19 @@ def new_run(task: str, method_names, preset: str = "paper", out: str | None = No
     raise ValueError("--grad-steps needs --envs-per-seed")
   validation.check_value("--seed", seed)
 
+  widen = {"envs_per_seed": envs_per_seed, "grad_steps": grad_steps}
+
   def configured(variants):
-    return {name: preset_config(preset, v["method"], task, {**overrides, **v["overrides"]},
-                                envs_per_seed, grad_steps) for name, v in variants.items()}
+    return {name: build_config(preset, v["method"], task, {**overrides, **v["overrides"]},
+                               run or {}, widen) for name, v in variants.items()}
 
   variants = sweep_variants(method_names, sweep or {})
-  specs = configured(variants)
+  built = configured(variants)
   if sweep:
-    variants = _read_only(variants, {name: c for name, (c, _) in specs.items()}, sweep)
-    specs = configured(variants)
-  spec = _resized(next(iter(specs.values()))[1], run or {})
-  configs = {name: sized_for_run(c, spec, {**overrides, **variants[name]["overrides"]})
-             for name, (c, _) in specs.items()}
+    variants = _read_only(variants, {name: c for name, (c, _) in built.items()}, sweep)
+    built = configured(variants)
+  spec = next(iter(built.values()))[1]
+  configs = {name: c for name, (c, _) in built.items()}
   check_plan(task, spec, configs)
   stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
   out = out if out is not None else os.path.join("runs", f"{task.lower()}-{stamp}")
@@ -116,7 +117,7 @@ def new_run(task: str, method_names, preset: str = "paper", out: str | None = No
     raise ValueError("--out must not be empty")
   return Plan(task=task, preset=preset, seed=seed, out=out, spec=spec, configs=configs,
               overrides=overrides,
-              widen={"envs_per_seed": envs_per_seed, "grad_steps": grad_steps},
+              widen=widen,
               variants={n: v for n, v in variants.items() if v["overrides"]}, physics=physics)
 
 
@@ -179,13 +180,25 @@ def _named(value) -> str:
   return f"{value:g}" if isinstance(value, float) else str(value)
 
 
-def preset_config(preset: str, method: str, task: str, overrides: dict,
-                  envs_per_seed: int | None = None, grad_steps: int | None = None):
-  """(config, spec) of today's preset, widened, with the overrides (before the run's size)."""
-  config, spec = methods.make_preset(preset, method, task)
-  if envs_per_seed is not None:
-    config, spec = methods.widen(config, spec, envs_per_seed, grad_steps)
-  return _explained(override, overrides, config, overrides), spec
+def build_config(preset: str, method: str, task: str, overrides: dict, run: dict,
+                 widen: dict) -> tuple[AgentConfig, methods.RunSpec]:
+  """(config, run size) in one pass. The run size first: the preset's, widened
+  (``widen["envs_per_seed"]``, ``methods.widen_layer``), then ``run``'s changes. Then the
+  config, ``override`` applied once to ``AgentConfig()`` with the dotted layers merged in
+  order: the preset's (task, method, preset), the widening, replay buffers sized for the run
+  (``methods.buffer_sizes``, from the merged c and num_envs), the user's ``overrides`` (so a
+  buffer size given there wins)."""
+  layers, spec = methods.preset_layers(preset, method, task)
+  wide = {}
+  if widen.get("envs_per_seed") is not None:
+    wide, spec = methods.widen_layer(override(AgentConfig(), layers), spec,
+                                     widen["envs_per_seed"], widen.get("grad_steps"))
+  spec = _resized(spec, run)
+  given = merge(layers, wide, overrides)
+  value = lambda path: given.get(path, get(AgentConfig(), path))
+  sized = methods.buffer_sizes(spec.steps, value("c"), value("num_envs"))
+  config = _explained(override, overrides, AgentConfig(), merge(layers, wide, sized, overrides))
+  return config, spec
 
 
 def _resized(spec: methods.RunSpec, run: dict) -> methods.RunSpec:
@@ -197,12 +210,6 @@ def _resized(spec: methods.RunSpec, run: dict) -> methods.RunSpec:
     changes["checkpoint_every"] = max(changes["chunk"], spec.checkpoint_every // changes["chunk"]
                                       * changes["chunk"])
   return dataclasses.replace(spec, **changes)
-
-
-def sized_for_run(config: AgentConfig, spec: methods.RunSpec, overrides: dict) -> AgentConfig:
-  """Replay buffers that hold the whole run (``spec.steps``), as the paper's never evict;
-  a buffer size given as an override wins (a smaller one is a ring)."""
-  return override(methods.size_buffers(config, spec.steps), overrides)
 
 
 def _explained(fn, flat: dict, *args):
@@ -412,9 +419,8 @@ def _saved_config(payload, name: str, spec, overrides: dict, widen: dict):
   variant = payload.get("variants", {}).get(name, {"method": name, "overrides": {}})
   overrides = {**overrides, **flatten(variant["overrides"])}
   try:
-    today, _ = preset_config(payload["preset"], variant["method"], payload["task"], overrides,
-                             widen.get("envs_per_seed"), widen.get("grad_steps"))
-    today = sized_for_run(today, spec, overrides)
+    today, _ = build_config(payload["preset"], variant["method"], payload["task"], overrides,
+                            dataclasses.asdict(spec), widen)
   except ValueError as e:
     today, notes = None, [f"cannot be rebuilt from today's presets ({e}); config.json is used"]
   try:
