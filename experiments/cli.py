@@ -32,6 +32,7 @@ import argparse
 import collections.abc
 import dataclasses
 import errno
+import importlib.util
 import math
 import os
 import sys
@@ -108,9 +109,16 @@ class _Parser(argparse.ArgumentParser):
     self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {message}\n")
 
 
+def _command(task: str) -> str:
+  """The command that runs ``task``: its module, or the registry's generic one."""
+  module = f"experiments.{task.lower()}"
+  return (f"python -m {module}" if importlib.util.find_spec(module) is not None
+          else f"python -m experiments {task}")
+
+
 def make_parser(task: str) -> argparse.ArgumentParser:
   p = _Parser(
-      prog=f"python -m experiments.{task.lower()}",
+      prog=_command(task),
       description=f"Train methods of Kim et al. (2023) on {task}; seeds are vmapped.",
       formatter_class=argparse.ArgumentDefaultsHelpFormatter)
   p.add_argument("--method", nargs="+", default=["ours"], choices=methods.METHODS,

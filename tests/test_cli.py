@@ -365,3 +365,13 @@ def test_sweep_values_are_parsed_by_their_fields_types():
     with pytest.raises(ValueError) as e:
       cli.parse_sweep(given)
     assert str(e.value).startswith(message), e.value
+
+
+def test_any_registered_task_runs_through_python_m_experiments():
+  env = {**os.environ, "JAX_PLATFORMS": "cpu"}
+  ok = subprocess.run([sys.executable, "-m", "experiments", "PointMaze", "--help"], cwd=ROOT,
+                      capture_output=True, text=True, env=env)
+  assert ok.returncode == 0 and "python -m experiments.pointmaze" in ok.stdout
+  bad = subprocess.run([sys.executable, "-m", "experiments", "HalfCheetah"], cwd=ROOT,
+                       capture_output=True, text=True, env=env)
+  assert bad.returncode == 2 and "TASK one of AntPush" in bad.stderr
