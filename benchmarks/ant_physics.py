@@ -30,8 +30,8 @@ import jax
 from benchmarks import common
 from benchmarks.seed_scaling import matmul_gflops, step_flops
 from nonmono_jax.core import train
-from nonmono_jax.host import methods, plan, run
 from nonmono_jax.core.config import override
+from nonmono_jax.host import methods, plan, run
 
 CHUNK = 200
 

@@ -39,8 +39,8 @@ import jax
 from benchmarks import common
 from benchmarks.common import ALL_MODES_LIVE
 from nonmono_jax.core import train
-from nonmono_jax.host import methods, plan, run
 from nonmono_jax.core.config import override
+from nonmono_jax.host import methods, plan, run
 
 
 def measure(env_name: str, method: str, seeds: int, num_envs: int, chunk: int,

@@ -24,8 +24,8 @@ import jax
 
 import envs
 from benchmarks import common
-from nonmono_jax.host import plan as plan_lib
 from nonmono_jax.core import train
+from nonmono_jax.host import plan as plan_lib
 
 SCENARIOS = {
     "ablations": (["ours", "ours-no-reward-mod", "ours-no-loss-mod", "ours-no-mods"], {}),

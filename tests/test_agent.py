@@ -12,10 +12,10 @@ import pytest
 import envs
 from nonmono_jax.core import agent as agent_lib
 from nonmono_jax.core import hierarchy, homeostasis, modes, numbers, ppo, td3, train
-from nonmono_jax.host import methods
 from nonmono_jax.core import config as config_lib
 from nonmono_jax.core.config import AgentConfig, TopConfig
 from nonmono_jax.core.switch import TriggerState
+from nonmono_jax.host import methods
 
 C, HORIZON, TOP_EVERY, MID_PPO_EVERY = 5, 25, 50, 15
 WARMUP, STARTING, STEPS, EPISODE = 100, 100, 500, 100

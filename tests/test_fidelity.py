@@ -14,9 +14,9 @@ import pytest
 
 import envs
 from nonmono_jax.core import buffers, evaluate, hierarchy, low as low_lib
-from nonmono_jax.host import methods
 from nonmono_jax.core import middle as middle_lib
 from nonmono_jax.core import numbers, relabel, td3
+from nonmono_jax.host import methods
 
 OBS, ACT = 7, 2
 SMALL = td3.TD3Config(hidden=(8,), batch_size=4, buffer_size=64)

@@ -15,9 +15,9 @@ import envs
 from nonmono_jax.core import agent as agent_lib
 from nonmono_jax.core import low as low_lib
 from nonmono_jax.core import middle as middle_lib, networks, numbers, ppo, td3
-from nonmono_jax.host import methods
 from nonmono_jax.core import top as top_lib
 from nonmono_jax.core.config import TopConfig
+from nonmono_jax.host import methods
 
 OBS, ACT = 7, 2
 SMALL = td3.TD3Config(hidden=(8,), batch_size=4, buffer_size=64)

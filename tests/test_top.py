@@ -5,8 +5,8 @@ import jax.numpy as jp
 import numpy as np
 
 from nonmono_jax.core import hierarchy, numbers, ppo
-from nonmono_jax.host import methods
 from nonmono_jax.core.top import Horizon, make_top
+from nonmono_jax.host import methods
 
 OBS = 4
 TARGET = (0.0, 19.0, 0.5)

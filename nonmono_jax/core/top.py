@@ -22,9 +22,8 @@ import jax
 import jax.numpy as jp
 from flax import struct
 
-from nonmono_jax.core import buffers, hierarchy, ppo
+from nonmono_jax.core import buffers, hierarchy, numbers, ppo
 from nonmono_jax.core.config import TopConfig
-from nonmono_jax.core import numbers
 from nonmono_jax.core.numbers import Numbers
 
 

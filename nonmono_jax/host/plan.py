@@ -35,9 +35,9 @@ import jax
 import envs
 from envs import ant_maze
 from nonmono_jax.core import numbers, validation
-from nonmono_jax.host import io, methods
 from nonmono_jax.core.config import AgentConfig, config_from_dict, differences, flatten, get
 from nonmono_jax.core.config import merge, missing_fields, override
+from nonmono_jax.host import io, methods
 
 PACKAGES = ("jax", "jaxlib", "mujoco", "mujoco-mjx", "brax", "flax", "optax", "orbax-checkpoint",
             "numpy", "nonmono-jax")
@@ -96,7 +96,6 @@ def new_run(task: str, method_names, preset: str = "paper", out: str | None = No
   if grad_steps is not None and envs_per_seed is None:
     raise ValueError("--grad-steps needs --envs-per-seed")
   validation.check_value("--seed", seed)
-
   widen = {"envs_per_seed": envs_per_seed, "grad_steps": grad_steps}
 
   def configured(variants):
@@ -116,8 +115,7 @@ def new_run(task: str, method_names, preset: str = "paper", out: str | None = No
   if not out:
     raise ValueError("--out must not be empty")
   return Plan(task=task, preset=preset, seed=seed, out=out, spec=spec, configs=configs,
-              overrides=overrides,
-              widen=widen,
+              overrides=overrides, widen=widen,
               variants={n: v for n, v in variants.items() if v["overrides"]}, physics=physics)
 
 
