@@ -87,20 +87,27 @@ def test_resume_after_a_stop_gives_the_same_metrics(reference, tmp_path):
   assert _bytes(out) == _bytes(reference)  # one line ending, whatever the resume history
 
 
-@pytest.mark.slow  # starts processes
-def test_sigkill_leaves_a_resumable_run(reference, tmp_path):
-  out = str(tmp_path / "run")
+def _started_past_a_checkpoint(out: str, stderr) -> subprocess.Popen:
+  """The tiny run of ours and Ref:PPO into ``out`` in a process of its own, once ours has
+  written a checkpoint (it must still be running then)."""
   env = {**os.environ, "PYTHONPATH": ROOT, "JAX_COMPILATION_CACHE_DIR": CACHE_DIR}
   proc = subprocess.Popen([sys.executable, "-m", "experiments.pointmaze", *TINY,
                            "--method", "ours", "ref-ppo", "--out", out], cwd=ROOT, env=env,
-                          stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                          stdout=subprocess.DEVNULL, stderr=stderr, text=True)
   ckpts = os.path.join(out, "checkpoints", "ours")
   deadline = time.time() + 300
   while time.time() < deadline and proc.poll() is None:
     if os.path.isdir(ckpts) and any(d.isdigit() for d in os.listdir(ckpts)):
       break
     time.sleep(0.05)
-  assert proc.poll() is None, "the run ended before it could be killed"
+  assert proc.poll() is None, "the run ended before it could be stopped"
+  return proc
+
+
+@pytest.mark.slow  # starts processes
+def test_sigkill_leaves_a_resumable_run(reference, tmp_path):
+  out = str(tmp_path / "run")
+  proc = _started_past_a_checkpoint(out, subprocess.DEVNULL)
   os.kill(proc.pid, signal.SIGKILL)
   proc.wait()
   rows = _rows(out)  # readable, consistent up to a checkpoint
@@ -115,17 +122,7 @@ def test_sigterm_is_one_line_and_leaves_a_resumable_run(reference, tmp_path):
   """A batch scheduler's SIGTERM ends the run as Ctrl-C does: exit code 1, one line naming the
   signal and the last good checkpoints, and --resume writes the uninterrupted run's bytes."""
   out = str(tmp_path / "run")
-  env = {**os.environ, "PYTHONPATH": ROOT, "JAX_COMPILATION_CACHE_DIR": CACHE_DIR}
-  proc = subprocess.Popen([sys.executable, "-m", "experiments.pointmaze", *TINY,
-                           "--method", "ours", "ref-ppo", "--out", out], cwd=ROOT, env=env,
-                          stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-  ckpts = os.path.join(out, "checkpoints", "ours")
-  deadline = time.time() + 300
-  while time.time() < deadline and proc.poll() is None:
-    if os.path.isdir(ckpts) and any(d.isdigit() for d in os.listdir(ckpts)):
-      break
-    time.sleep(0.05)
-  assert proc.poll() is None, "the run ended before it could be stopped"
+  proc = _started_past_a_checkpoint(out, subprocess.PIPE)
   proc.send_signal(signal.SIGTERM)
   err = proc.communicate(timeout=120)[1]
   lines = [l for l in err.splitlines() if l.strip() and "Warning" not in l and "warn" not in l]
