@@ -91,21 +91,17 @@ def of(config) -> Numbers:
   return Numbers({p: np.asarray(get(p), np.float32) for p in paths(config)})
 
 
-def _with_defaults(config):
-  """``config`` with each traced field at the default its declaration gives."""
+def static_key(config):
+  """``config`` with each traced field at the default its declaration gives: configs with
+  equal keys build one program."""
   changes = {}
   for f in dataclasses.fields(config):
     value = getattr(config, f.name)
     if f.metadata.get(_TRACED):
       changes[f.name] = f.default
     elif dataclasses.is_dataclass(value):
-      changes[f.name] = _with_defaults(value)
+      changes[f.name] = static_key(value)
   return dataclasses.replace(config, **changes)
-
-
-def static_key(config):
-  """``config`` with its traced fields normalised: equal keys, one program."""
-  return _with_defaults(config)
 
 
 def stack(configs: Sequence) -> Numbers:
