@@ -2,11 +2,13 @@
 
 Loads the run's latest checkpoint of ``--method`` (default: the run's first), runs one episode
 of the evaluation policy (Middle TD3 + Low TD3 without noise, each goal held for c steps) for
-``--seed``, and draws it from above: walls, chasm, the movable blocks where they are, the
+``--seed`` (a number, or ``best`` / ``worst``: the seed with the highest / lowest S_E at the
+latest evaluation the checkpoint covers), and draws it from above: walls, chasm, the movable blocks where they are, the
 target with its success radius, the robot's path, and the Middle's current goal (the world
 point s[:3] + g that the Low is sent to) with the line from the robot to it.
 
     python -m experiments.render runs/quick --method hiro --seed 1 --out hiro.gif
+    python -m experiments.render results/antpush/ours --seed best     # DIR/ours_seed<N>.gif
 
 Both robots are drawn the same way (torso xy for the ant), with matplotlib: no OpenGL needed.
 """
@@ -21,6 +23,7 @@ import jax
 import jax.numpy as jp
 import numpy as np
 
+from experiments import plot as plot_lib
 from nonmono_jax.core import evaluate
 from nonmono_jax.host import io, plan as plan_lib
 from nonmono_jax.host import programs as programs_lib
@@ -63,6 +66,37 @@ def rollout(run_dir: str, method: str | None = None, seed: int = 0, key: int = 0
   out = jax.tree.map(np.asarray, episode(jax.random.PRNGKey(key)))
   return {**out, "env": env, "task": plan.task, "method": method, "seed": seed, "step": step,
           "num_envs": config.num_envs, "warnings": plan.warnings}
+
+
+def ranked_seed(run_dir: str, method: str | None, which: str) -> tuple[int, float, int]:
+  """(seed, S_E, env step): the ``best`` or ``worst`` trained seed of ``method`` by its S_E at
+  the latest evaluation the latest checkpoint covers. A tie goes to the seed with the higher
+  (best) or lower (worst) mean S_E over all its evaluations up to there, then to the lower
+  index."""
+  plan = plan_lib.load_run(run_dir)
+  method = next(iter(plan.configs)) if method is None else method
+  if method not in plan.configs:
+    raise ValueError(f"method {method!r} is not in this run ({', '.join(plan.configs)})")
+  ckpts = io.Checkpoints(os.path.join(run_dir, "checkpoints", method))
+  try:
+    step = ckpts.latest_step()
+  finally:
+    ckpts.close()
+  if step is None:
+    raise ValueError(f"no checkpoint of {method} in {run_dir}")
+  covered = step * plan.configs[method].num_envs
+  rows = [r for r in plot_lib.load([run_dir]) if int(r["env_step"]) <= covered]
+  steps, values = plot_lib.per_seed(rows, plan.task, method, "eval_success")
+  if not len(steps):
+    raise ValueError(f"no evaluation of {method} up to its checkpoint ({covered} env steps)")
+  # the seeds in per_seed's order (as strings sorted)
+  seeds = [int(k) for k in sorted({r["seed"] for r in rows if r["method"] == method})]
+  final, mean = values[:, -1], values.mean(1)
+  if which == "best":
+    pick = max(range(len(seeds)), key=lambda i: (final[i], mean[i], -seeds[i]))
+  else:
+    pick = min(range(len(seeds)), key=lambda i: (final[i], mean[i], seeds[i]))
+  return seeds[pick], float(values[pick, -1]), int(steps[-1])
 
 
 def draw(roll: dict, path: str, max_frames: int = 150, fps: int = 15) -> int:
@@ -126,7 +160,8 @@ def main(argv=None) -> int:
   p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
   p.add_argument("dir", help="a run folder")
   p.add_argument("--method", default=None, help="default: the run's first method")
-  p.add_argument("--seed", type=int, default=0, help="which trained seed")
+  p.add_argument("--seed", default="0",
+                 help="which trained seed: a number, or best / worst by S_E at the checkpoint")
   p.add_argument("--key", type=int, default=0, help="PRNG key of the episode's reset")
   p.add_argument("--out", default=None, help="GIF path (default: DIR/<method>_seed<N>.gif)")
   p.add_argument("--max-frames", type=int, default=150)
@@ -138,13 +173,19 @@ def main(argv=None) -> int:
       p.exit(2, f"{p.prog}: error: cannot write {args.out}: --out must be a .gif file path\n")
     if not os.path.isdir(os.path.dirname(os.path.abspath(args.out))):
       p.exit(2, f"{p.prog}: error: cannot write {args.out}: its folder does not exist\n")
+  if args.seed not in ("best", "worst") and not args.seed.isdigit():
+    p.exit(2, f"{p.prog}: error: --seed must be a number, best or worst, got {args.seed!r}\n")
   try:
-    roll = rollout(args.dir, args.method, args.seed, args.key)
+    seed = int(args.seed) if args.seed.isdigit() else None
+    if seed is None:
+      seed, score, at = ranked_seed(args.dir, args.method, args.seed)
+      print(f"{args.seed} seed: {seed} (S_E {score:.2f} at {at} env steps)")
+    roll = rollout(args.dir, args.method, seed, args.key)
   except (ValueError, OSError, io.CheckpointError) as e:
     p.exit(2, f"{p.prog}: error: {e}\n")
   for warning in roll["warnings"]:
     print(f"warning: {warning}", file=sys.stderr)
-  out = args.out or os.path.join(args.dir, f"{roll['method']}_seed{args.seed}.gif")
+  out = args.out or os.path.join(args.dir, f"{roll['method']}_seed{seed}.gif")
   try:
     n = draw(roll, out, args.max_frames)
   except OSError as e:

@@ -1,9 +1,11 @@
 """The experiment command: good and bad input, run folders, resume equivalence, kill and resume."""
 
 import argparse
+import collections
 import csv
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -310,6 +312,50 @@ def test_render_writes_a_gif_of_a_trained_policy(reference, tmp_path, capsys):
   assert roll["pos"].shape == (101, 3) and roll["goal"].shape == (101, 3)
   with pytest.raises(SystemExit) as err:
     render.main([reference, "--method", "hiro"])
+  assert err.value.code == 2
+
+
+def _with_eval(run, scores):
+  """Rewrites run's metrics.csv: S_E of (method, seed) at its k-th evaluation is scores[...][k]."""
+  rows, seen = _rows(run), collections.Counter()
+  for r in rows:
+    if r["eval_success"] != "" and (r["method"], r["seed"]) in scores:
+      k = seen[r["method"], r["seed"]]
+      seen[r["method"], r["seed"]] += 1
+      r["eval_success"] = scores[r["method"], r["seed"]][k]
+  with open(os.path.join(run, "metrics.csv"), "w", newline="") as f:
+    writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+    writer.writeheader()
+    writer.writerows(rows)
+  return min(seen.values())
+
+
+def test_render_picks_the_best_and_the_worst_seed(reference, tmp_path, capsys):
+  from experiments import render
+
+  run = str(tmp_path / "run")
+  shutil.copytree(reference, run)
+  n = 4  # evaluations per seed in the tiny run
+  assert _with_eval(run, {("ours", "0"): [0.9] * (n - 1) + [0.2],
+                          ("ours", "1"): [0.0] * (n - 1) + [0.6],
+                          ("ref-ppo", "0"): [0.0] * (n - 1) + [0.4],
+                          ("ref-ppo", "1"): [0.8] + [0.0] * (n - 2) + [0.4]}) == n
+  assert render.ranked_seed(run, "ours", "best")[:2] == (1, 0.6)  # by the final S_E
+  assert render.ranked_seed(run, "ours", "worst")[:2] == (0, 0.2)
+  kept = sorted(os.listdir(os.path.join(run, "checkpoints", "ours")), key=int)
+  shutil.rmtree(os.path.join(run, "checkpoints", "ours", kept[-1]))  # S_E where it is covered
+  assert render.ranked_seed(run, "ours", "best") == (0, 0.9, int(kept[-2]))
+  assert render.ranked_seed(run, "ref-ppo", "best")[0] == 1  # a tie: the mean decides
+  assert render.ranked_seed(run, "ref-ppo", "worst")[0] == 0
+  _with_eval(run, {("ref-ppo", "1"): [0.0] * (n - 1) + [0.4]})
+  assert render.ranked_seed(run, "ref-ppo", "best")[0] == 0  # a whole tie: the lower index
+  assert render.ranked_seed(run, "ref-ppo", "worst")[0] == 0
+  out = tmp_path / "worst.gif"
+  assert render.main([run, "--method", "ours", "--seed", "worst", "--out", str(out),
+                      "--max-frames", "2"]) == 0
+  assert "worst seed: 1 (S_E 0.00" in capsys.readouterr().out and out.exists()
+  with pytest.raises(SystemExit) as err:
+    render.main([run, "--seed", "median"])
   assert err.value.code == 2
 
 
