@@ -43,7 +43,7 @@ def make(env_name: str, method: str, seeds: int, physics: str, chunk: int) -> di
   trainer = train.make_trainer(env, config, num_seeds=seeds, chunk_steps=chunk)
   states = jax.block_until_ready(trainer.init(jax.random.PRNGKey(0)))
   t0 = time.perf_counter()
-  compiled = trainer.chunk.lower(states, 0).compile()
+  compiled = common.compile_chunk(trainer, states)
   compile_s = time.perf_counter() - t0
   states, _ = jax.block_until_ready(compiled(states, 0))
   return {"env": env_name, "physics": getattr(env, "physics", "jax"), "method": method,

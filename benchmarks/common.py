@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import dataclasses
 import datetime
 import json
 import os
 import platform
 import sys
+from typing import Any
 
 import jax
 
@@ -60,6 +62,29 @@ def memory_stats() -> dict:
   far); empty on a CPU, whose runtime keeps none."""
   stats = jax.devices()[0].memory_stats() or {}
   return {k: stats[k] for k in ("peak_bytes_in_use", "bytes_in_use", "bytes_limit") if k in stats}
+
+
+@dataclasses.dataclass(frozen=True)
+class CompiledChunk:
+  """A trainer's chunk compiled ahead of time: called as ``chunk(states, t0)``, as the trainer's
+  own; ``memory_analysis`` and ``as_text`` are XLA's, of the compiled program."""
+
+  compiled: Any  # jax.stages.Compiled of chunk_program(states, t0, hp)
+  hp: Any  # the lanes' Numbers it is called with
+
+  def __call__(self, states, t0):
+    return self.compiled(states, t0, self.hp)
+
+  def memory_analysis(self):
+    return self.compiled.memory_analysis()
+
+  def as_text(self) -> str:
+    return self.compiled.as_text()
+
+
+def compile_chunk(trainer, states) -> CompiledChunk:
+  """``trainer``'s chunk compiled for ``states`` (its time is the compile time)."""
+  return CompiledChunk(trainer.chunk_program.lower(states, 0, trainer.hp).compile(), trainer.hp)
 
 
 def program_bytes(compiled) -> dict:

@@ -42,7 +42,7 @@ def worker(args) -> None:
   from benchmarks.profile_step import make_point_trainer
   trainer = make_point_trainer("PointPush", args.method, args.seeds, args.chunk)
   states = trainer.init(jax.random.PRNGKey(0))
-  compiled = trainer.chunk.lower(states, 0).compile()
+  compiled = common.compile_chunk(trainer, states)
   states, m = compiled(states, 0)
   processes.gather(m)
   best = float("inf")

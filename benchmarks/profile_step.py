@@ -97,7 +97,7 @@ def group(times: dict, key, steps: int, top: int) -> list[dict]:
 def profile(env_name, method, seeds, steps, hidden, top) -> dict:
   trainer = make_point_trainer(env_name, method, seeds, steps, hidden)
   states = trainer.init(jax.random.PRNGKey(0))
-  compiled = trainer.chunk.lower(states, 0).compile()
+  compiled = common.compile_chunk(trainer, states)
   states, _ = jax.block_until_ready(compiled(states, 0))
   t0 = time.perf_counter()
   states, _ = jax.block_until_ready(compiled(states, steps))

@@ -85,7 +85,7 @@ def measure(env_name, method, seeds, hidden, chunk, repeats, roofline) -> list[d
     trainer = make_point_trainer(env_name, method, s, chunk, hidden)
     states = trainer.init(jax.random.PRNGKey(0))
     t0 = time.perf_counter()
-    compiled = trainer.chunk.lower(states, 0).compile()
+    compiled = common.compile_chunk(trainer, states)
     compile_s = time.perf_counter() - t0
     states, _ = jax.block_until_ready(compiled(states, 0))
     progs.append({"seeds": s, "compiled": compiled, "states": states, "wall": float("inf"),

@@ -56,7 +56,7 @@ def measure(env_name: str, method: str, seeds: int, num_envs: int, chunk: int,
   trainer = train.make_trainer(env, config, num_seeds=seeds, chunk_steps=chunk)
   states = jax.block_until_ready(trainer.init(jax.random.PRNGKey(0)))
   t0 = time.perf_counter()
-  compiled = trainer.chunk.lower(states, 0).compile()
+  compiled = common.compile_chunk(trainer, states)
   compile_s = time.perf_counter() - t0
   memory = common.program_bytes(compiled)
   t0 = time.perf_counter()

@@ -64,8 +64,9 @@ class Trainer:
   chunk: Callable
   evaluate: Callable
   variants: int = 1  # lanes = variants x num_seeds, variant-major
-  # the jitted chunk(states, t0, hp) that ``chunk`` calls with the lanes' Numbers
+  # the jitted chunk(states, t0, hp) that ``chunk`` calls with the lanes' Numbers ``hp``
   chunk_program: Callable | None = None
+  hp: Any = None
   # XLA's memory count of one device's compiled chunk: {"argument", "output", "temp",
   # "alias", "total"} bytes (compiles it; benchmarks.common.program_bytes)
   program_bytes: Callable[[], dict] | None = None
@@ -173,4 +174,4 @@ def _make(env, config, per_lane, num_seeds, chunk_steps, devices, compiler_optio
       agent=agent, num_seeds=num_seeds, chunk_steps=chunk_steps, mesh=mesh,
       init=init, chunk=chunk,
       evaluate=jit(shard(local_evaluate, (P("seeds"), P()))), variants=variants,
-      chunk_program=lanes_chunk, program_bytes=program_bytes)
+      chunk_program=lanes_chunk, hp=hp, program_bytes=program_bytes)
