@@ -41,6 +41,8 @@ def make_env(name: str, physics: str = "auto"):
     return ant_maze.AntMazeEnv(tasks.FLAT, ant_maze.AntConfig(physics=physics))
   if name == "brax-ant":
     return _brax_ant()
+  if name.startswith("Point"):  # the pure-JAX point robot has one physics
+    return envs.make(name)
   return envs.make(name, physics=physics)
 
 
@@ -83,7 +85,8 @@ def main(argv=None):
   batches = args.batches or ([1, 16, 256, 1024, 4096, 16384] if on_gpu else [1, 16, 256])
   rows = []
   for name in args.envs:
-    for physics in (["mjx"] if name == "brax-ant" else args.physics):
+    own = {"brax-ant": ["mjx"]}.get(name, ["jax"] if name.startswith("Point") else args.physics)
+    for physics in own:
       env = make_env(name, physics)
       physics = getattr(env, "physics", physics)
       for b in batches:
