@@ -35,6 +35,7 @@ def worker(args) -> None:
                  str(args.num_processes), "--process-id", str(args.process_id)])
   import jax
 
+  from benchmarks import common
   from nonmono_jax.host import processes, run
   run.use_cpu_devices(args.cpu_devices)
   if args.num_processes > 1:

@@ -3,9 +3,10 @@
 Loads the run's latest checkpoint of ``--method`` (default: the run's first), runs one episode
 of the evaluation policy (Middle TD3 + Low TD3 without noise, each goal held for c steps) for
 ``--seed`` (a number, or ``best`` / ``worst``: the seed with the highest / lowest S_E at the
-latest evaluation the checkpoint covers), and draws it from above: walls, chasm, the movable blocks where they are, the
-target with its success radius, the robot's path, and the Middle's current goal (the world
-point s[:3] + g that the Low is sent to) with the line from the robot to it.
+latest evaluation the checkpoint covers), and draws it from above: walls, chasm, the movable
+blocks where they are, the target with its success radius, the robot's path, and the Middle's
+current goal (the world point s[:3] + g that the Low is sent to) with the line from the robot
+to it.
 
     python -m experiments.render runs/quick --method hiro --seed 1 --out hiro.gif
     python -m experiments.render results/antpush/ours --seed best     # DIR/ours_seed<N>.gif

@@ -77,7 +77,7 @@ def test_state_crossing_to_the_host_is_exact(push):
     np.testing.assert_array_equal(rows[i], _mujoco(push.mj_model, rows0[i], controls[i]))
   np.testing.assert_array_equal(np.asarray(s.pipeline_state.qpos), rows[:, 1:18].astype(np.float32))
   # Without the warm start carried over, the same steps end elsewhere.
-  d, m = mujoco.MjData(push.mj_model), push.mj_model
+  m = push.mj_model
   row = rows0[0].copy()
   for c in controls[0]:
     row[-m.nv:] = 0.0

@@ -4,7 +4,7 @@ outcomes come out as the protocol (results/antpush/README.md) defines them."""
 import numpy as np
 import pytest
 
-from experiments import claims, plot
+from experiments import claims
 from nonmono_jax.host import io
 
 STEPS = np.arange(110_000, 1_000_001, 10_000)

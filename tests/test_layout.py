@@ -3,6 +3,8 @@ the host side or the commands, and functions stay short enough to read at once."
 
 import ast
 import os
+import subprocess
+import sys
 
 import pytest
 
@@ -57,3 +59,11 @@ def test_functions_are_at_most_60_lines_of_their_own(folder):
           if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef))
           and _own_lines(node) > MAX_OWN_LINES]
   assert not long, long
+
+
+def test_no_undefined_or_unused_names():
+  """pyflakes' rules (ruff's F): an undefined name in code no test runs (a benchmark's worker,
+  say) fails here rather than in a user's hands."""
+  r = subprocess.run([sys.executable, "-m", "ruff", "check", "--select", "F", "--no-cache",
+                      "--output-format", "concise", ROOT], capture_output=True, text=True)
+  assert r.returncode == 0, r.stdout + r.stderr

@@ -4,7 +4,6 @@ exit code 0 ok / 1 failed run / 2 bad input / 3 time limit."""
 
 import dataclasses
 import errno
-import json
 import os
 import shutil
 import signal
