@@ -85,14 +85,3 @@ class CompiledChunk:
 def compile_chunk(trainer, states) -> CompiledChunk:
   """``trainer``'s chunk compiled for ``states`` (its time is the compile time)."""
   return CompiledChunk(trainer.chunk_program.lower(states, 0, trainer.hp).compile(), trainer.hp)
-
-
-def program_bytes(compiled) -> dict:
-  """Device memory of one compiled program, from XLA's own accounting: its arguments, outputs
-  and temporaries (less what the outputs alias: donated inputs)."""
-  m = compiled.memory_analysis()
-  if m is None:
-    return {}
-  out = {k: int(getattr(m, f"{k}_size_in_bytes")) for k in ("argument", "output", "temp", "alias")}
-  out["total"] = out["argument"] + out["output"] + out["temp"] - out["alias"]
-  return out

@@ -58,7 +58,7 @@ def measure(env_name: str, method: str, seeds: int, num_envs: int, chunk: int,
   t0 = time.perf_counter()
   compiled = common.compile_chunk(trainer, states)
   compile_s = time.perf_counter() - t0
-  memory = common.program_bytes(compiled)
+  memory = train.compiled_bytes(compiled)
   t0 = time.perf_counter()
   states, _ = jax.block_until_ready(compiled(states, 0))
   first_s = time.perf_counter() - t0

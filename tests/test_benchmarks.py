@@ -22,7 +22,7 @@ def test_a_compiled_chunk_is_the_trainers_chunk():
   theirs, m_theirs = trainer.chunk(trainer.init(key), 0)
   for a, b in zip(jax.tree.leaves((ours, m_ours)), jax.tree.leaves((theirs, m_theirs))):
     np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
-  assert common.program_bytes(compiled)["total"] > 0
+  assert train.compiled_bytes(compiled)["total"] > 0
   assert "fusion" in compiled.as_text()
 
 

@@ -54,6 +54,17 @@ from nonmono_jax.core import metrics as metrics_lib
 from nonmono_jax.core.config import check_group
 
 
+def compiled_bytes(compiled) -> dict:
+  """Device memory of one compiled program, from XLA's own accounting: {"argument", "output",
+  "temp", "alias", "total"} bytes, the total less what the outputs alias (donated inputs); {}
+  where XLA keeps no count."""
+  m = compiled.memory_analysis()
+  if m is None:
+    return {}
+  out = {k: int(getattr(m, f"{k}_size_in_bytes")) for k in ("argument", "output", "temp", "alias")}
+  return {**out, "total": out["argument"] + out["output"] + out["temp"] - out["alias"]}
+
+
 @dataclasses.dataclass(frozen=True)
 class Trainer:
   agent: agent_lib.Agent
@@ -67,8 +78,7 @@ class Trainer:
   # the jitted chunk(states, t0, hp) that ``chunk`` calls with the lanes' Numbers ``hp``
   chunk_program: Callable | None = None
   hp: Any = None
-  # XLA's memory count of one device's compiled chunk: {"argument", "output", "temp",
-  # "alias", "total"} bytes (compiles it; benchmarks.common.program_bytes)
+  # XLA's memory count of one device's compiled chunk (compiles it; compiled_bytes)
   program_bytes: Callable[[], dict] | None = None
 
   @property
@@ -166,10 +176,7 @@ def _make(env, config, per_lane, num_seeds, chunk_steps, devices, compiler_optio
   lower = lambda states: lanes_chunk.lower(states, 0, hp)
 
   def program_bytes():
-    m = lower(jax.eval_shape(init, jax.random.PRNGKey(0))).compile().memory_analysis()
-    out = {k: int(getattr(m, f"{k}_size_in_bytes")) for k in ("argument", "output", "temp",
-                                                              "alias")}
-    return {**out, "total": out["argument"] + out["output"] + out["temp"] - out["alias"]}
+    return compiled_bytes(lower(jax.eval_shape(init, jax.random.PRNGKey(0))).compile())
   return Trainer(
       agent=agent, num_seeds=num_seeds, chunk_steps=chunk_steps, mesh=mesh,
       init=init, chunk=chunk,
