@@ -30,23 +30,31 @@ from nonmono_jax.host import io, plan as plan_lib
 from nonmono_jax.host import programs as programs_lib
 
 
-def rollout(run_dir: str, method: str | None = None, seed: int = 0, key: int = 0) -> dict:
-  """One evaluation episode of a saved run: positions, goals, blocks, success per step."""
+def _saved(run_dir: str, method: str | None):
+  """(plan, method, its checkpoints, their latest step) of a run folder; ``method`` defaults
+  to the run's first. The caller closes the checkpoints."""
   plan = plan_lib.load_run(run_dir)  # its config.json, whatever today's presets say
   method = next(iter(plan.configs)) if method is None else method
   if method not in plan.configs:
     raise ValueError(f"method {method!r} is not in this run ({', '.join(plan.configs)})")
-  config, spec = plan.configs[method], plan.spec
-  if not 0 <= seed < spec.seeds:
-    raise ValueError(f"seed must be in [0, {spec.seeds}), got {seed}")
-  trainer = programs_lib.Programs(plan).trainer(method)
-  env = trainer.agent.env
   ckpts = io.Checkpoints(os.path.join(run_dir, "checkpoints", method))
   step = ckpts.latest_step()
   if step is None:
+    ckpts.close()
     raise ValueError(f"no checkpoint of {method} in {run_dir}")
-  like = jax.eval_shape(trainer.init, jax.random.PRNGKey(0))
+  return plan, method, ckpts, step
+
+
+def rollout(run_dir: str, method: str | None = None, seed: int = 0, key: int = 0) -> dict:
+  """One evaluation episode of a saved run: positions, goals, blocks, success per step."""
+  plan, method, ckpts, step = _saved(run_dir, method)
   try:
+    config, spec = plan.configs[method], plan.spec
+    if not 0 <= seed < spec.seeds:
+      raise ValueError(f"seed must be in [0, {spec.seeds}), got {seed}")
+    trainer = programs_lib.Programs(plan).trainer(method)
+    env = trainer.agent.env
+    like = jax.eval_shape(trainer.init, jax.random.PRNGKey(0))
     step, states = ckpts.restore_newest(like, move_aside=False)
   finally:
     ckpts.close()
@@ -74,30 +82,24 @@ def ranked_seed(run_dir: str, method: str | None, which: str) -> tuple[int, floa
   the latest evaluation the latest checkpoint covers. A tie goes to the seed with the higher
   (best) or lower (worst) mean S_E over all its evaluations up to there, then to the lower
   index."""
-  plan = plan_lib.load_run(run_dir)
-  method = next(iter(plan.configs)) if method is None else method
-  if method not in plan.configs:
-    raise ValueError(f"method {method!r} is not in this run ({', '.join(plan.configs)})")
-  ckpts = io.Checkpoints(os.path.join(run_dir, "checkpoints", method))
-  try:
-    step = ckpts.latest_step()
-  finally:
-    ckpts.close()
-  if step is None:
-    raise ValueError(f"no checkpoint of {method} in {run_dir}")
+  plan, method, ckpts, step = _saved(run_dir, method)
+  ckpts.close()
   covered = step * plan.configs[method].num_envs
-  rows = [r for r in plot_lib.load([run_dir]) if int(r["env_step"]) <= covered]
-  steps, values = plot_lib.per_seed(rows, plan.task, method, "eval_success")
-  if not len(steps):
+  rows = [r for r in plot_lib.load([run_dir])
+          if r["method"] == method and int(r["env_step"]) <= covered]
+  scores = {}  # seed -> (S_E at its latest evaluation, mean S_E, that step)
+  for k in sorted({int(r["seed"]) for r in rows}):
+    steps, values = plot_lib.per_seed([r for r in rows if int(r["seed"]) == k], plan.task,
+                                      method, "eval_success")
+    if len(steps):
+      scores[k] = (float(values[0, -1]), float(values[0].mean()), int(steps[-1]))
+  if not scores:
     raise ValueError(f"no evaluation of {method} up to its checkpoint ({covered} env steps)")
-  # the seeds in per_seed's order (as strings sorted)
-  seeds = [int(k) for k in sorted({r["seed"] for r in rows if r["method"] == method})]
-  final, mean = values[:, -1], values.mean(1)
   if which == "best":
-    pick = max(range(len(seeds)), key=lambda i: (final[i], mean[i], -seeds[i]))
+    seed = max(scores, key=lambda k: (scores[k][0], scores[k][1], -k))
   else:
-    pick = min(range(len(seeds)), key=lambda i: (final[i], mean[i], seeds[i]))
-  return seeds[pick], float(values[pick, -1]), int(steps[-1])
+    seed = min(scores, key=lambda k: (scores[k][0], scores[k][1], k))
+  return seed, scores[seed][0], scores[seed][2]
 
 
 def draw(roll: dict, path: str, max_frames: int = 150, fps: int = 15) -> int:
