@@ -85,8 +85,8 @@ def main(argv=None):
   batches = args.batches or ([1, 16, 256, 1024, 4096, 16384] if on_gpu else [1, 16, 256])
   rows = []
   for name in args.envs:
-    own = {"brax-ant": ["mjx"]}.get(name, ["jax"] if name.startswith("Point") else args.physics)
-    for physics in own:
+    own = ["mjx"] if name == "brax-ant" else ["jax"] if name.startswith("Point") else args.physics
+    for physics in own:  # a task's own physics, or each asked for (the maze ants)
       env = make_env(name, physics)
       physics = getattr(env, "physics", physics)
       for b in batches:
