@@ -345,7 +345,12 @@ def _band(ax, steps, mean, std, label, color=None):
 
 def _finish(fig, out, name):
   """Save ``name`` as PNG and PDF; the PDF without its creation date, so that drawing the same
-  files again writes the same bytes (committed figures change only when the data does)."""
+  files again writes the same bytes (committed figures change only when the data does).
+  Env-step axes are labelled 250k, 1M: six-digit tick labels run into each other."""
+  from matplotlib.ticker import EngFormatter
+  for ax in fig.axes:
+    if ax.get_xlabel() == "env steps":
+      ax.xaxis.set_major_formatter(EngFormatter(sep=""))
   fig.tight_layout()
   paths = []
   for ext in ("png", "pdf"):

@@ -219,3 +219,20 @@ def test_folders_of_a_job_array_merge_their_seeds(tmp_path):
   assert values.shape == (6, 2) and sorted(values[:, -1]) == [0, 0, 0, 1, 1, 1]
   (r,) = plot.summary(rows, reps=100)
   assert r["seeds"] == 6
+
+
+def test_env_step_axes_read_in_thousands_and_millions(tmp_path):
+  """Six-digit step ticks (100000, 125000, ...) run into each other on the Ant's 1M runs: an
+  axis labelled "env steps" reads 250k, 1M."""
+  import matplotlib
+  matplotlib.use("Agg")
+  import matplotlib.pyplot as plt
+  fig, (steps_ax, other_ax) = plt.subplots(1, 2)
+  for ax in (steps_ax, other_ax):
+    ax.plot([0, 1_000_000], [0, 1])
+  steps_ax.set_xlabel("env steps")
+  plot._finish(fig, str(tmp_path), "fig")
+  fig.canvas.draw()
+  assert {"200k", "1M"} <= {t.get_text() for t in steps_ax.get_xticklabels()}
+  assert "1M" not in [t.get_text() for t in other_ax.get_xticklabels()]
+  plt.close(fig)
