@@ -43,6 +43,7 @@ LABELS = {"ours": "Ours", "hiro": "HIRO", "ref-uniform": "Ref:Uniform", "ref-ppo
           "ours-no-mods": "Ours w/o both"}
 ABLATIONS = ("ours", "ours-no-reward-mod", "ours-no-loss-mod", "ours-no-mods")
 MODE_COLORS = {"TD3": "tab:blue", "PPO": "tab:orange", "RANDOM": "tab:green"}
+STEPS_LABEL = "env steps"  # the x label of every step axis; `_finish` formats those axes
 
 
 def label(variant: str) -> str:
@@ -349,7 +350,7 @@ def _finish(fig, out, name):
   Env-step axes are labelled 250k, 1M: six-digit tick labels run into each other."""
   from matplotlib.ticker import EngFormatter
   for ax in fig.axes:
-    if ax.get_xlabel() == "env steps":
+    if ax.get_xlabel() == STEPS_LABEL:
       ax.xaxis.set_major_formatter(EngFormatter(sep=""))
   fig.tight_layout()
   paths = []
@@ -394,7 +395,7 @@ def _iqm_figure(plt, task, curves_, table, out) -> list[str]:
   fig, axes = plt.subplots(1, 3 if baselines else 2, figsize=(15 if baselines else 10.5, 4))
   for m, curve in curves_.items():
     _iqm_band(axes[0], curve, label(m), colors[m])
-  axes[0].set(title=f"{task}: S_E, IQM over seeds (95% CI)", xlabel="env steps",
+  axes[0].set(title=f"{task}: S_E, IQM over seeds (95% CI)", xlabel=STEPS_LABEL,
               ylabel="S_E", ylim=(-0.05, 1.05))
   axes[0].legend(fontsize=8)
   axes[0].grid(alpha=0.3)
@@ -416,7 +417,7 @@ def _ablation_figure(plt, task, curves_, out) -> list[str]:
   fig, ax = plt.subplots(figsize=(5.5, 4))
   for m, curve in curves_.items():
     _iqm_band(ax, curve, label(m))
-  ax.set(title=f"{task}: ablations", xlabel="env steps", ylabel="S_E, IQM over seeds (95% CI)",
+  ax.set(title=f"{task}: ablations", xlabel=STEPS_LABEL, ylabel="S_E, IQM over seeds (95% CI)",
          ylim=(-0.05, 1.05))
   ax.legend(fontsize=8)
   ax.grid(alpha=0.3)
@@ -466,9 +467,9 @@ def _draw(rows, out) -> list[str]:
       _band(ax1, steps, mean, std, f"{label(m)} ({n} seeds)")
       steps, mean, std, n = curves(rows, task, m, "eval_return")
       _band(ax2, steps, mean, std, label(m))
-    ax1.set(title=f"{task}: success rate", xlabel="env steps",
+    ax1.set(title=f"{task}: success rate", xlabel=STEPS_LABEL,
             ylabel="S_E (Middle TD3 + Low TD3)", ylim=(-0.05, 1.05))
-    ax2.set(title=f"{task}: evaluation return", xlabel="env steps", ylabel="return per episode")
+    ax2.set(title=f"{task}: evaluation return", xlabel=STEPS_LABEL, ylabel="return per episode")
     ax1.legend(fontsize=8)
     for ax in (ax1, ax2):
       ax.grid(alpha=0.3)
@@ -483,7 +484,7 @@ def _draw(rows, out) -> list[str]:
       for mode in MODES:
         steps, mean, std, _ = curves(rows, task, m, f"cum_{unit}_{mode}")
         _band(ax, steps, mean, std, mode, MODE_COLORS[mode])
-      ax.set(title=label(m), xlabel="env steps")
+      ax.set(title=label(m), xlabel=STEPS_LABEL)
       ax.grid(alpha=0.3)
     axes[0][0].set_ylabel("Middle decisions in the mode (cumulative)" if unit == "decisions"
                           else "env steps run in the mode (cumulative)")

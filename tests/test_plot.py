@@ -222,15 +222,15 @@ def test_folders_of_a_job_array_merge_their_seeds(tmp_path):
 
 
 def test_env_step_axes_read_in_thousands_and_millions(tmp_path):
-  """Six-digit step ticks (100000, 125000, ...) run into each other on the Ant's 1M runs: an
-  axis labelled "env steps" reads 250k, 1M."""
+  """Six-digit step ticks (100000, 125000, ...) run into each other on the Ant's 1M runs: a
+  step axis reads 200k, 1M."""
   import matplotlib
   matplotlib.use("Agg")
   import matplotlib.pyplot as plt
   fig, (steps_ax, other_ax) = plt.subplots(1, 2)
   for ax in (steps_ax, other_ax):
     ax.plot([0, 1_000_000], [0, 1])
-  steps_ax.set_xlabel("env steps")
+  steps_ax.set_xlabel(plot.STEPS_LABEL)
   plot._finish(fig, str(tmp_path), "fig")
   fig.canvas.draw()
   assert {"200k", "1M"} <= {t.get_text() for t in steps_ax.get_xticklabels()}
