@@ -12,6 +12,8 @@ Per task found in the folders' ``metrics.csv`` files:
   pointwise 95 % stratified-bootstrap intervals, final S_E as IQM with its interval per
   method, and the probability of improvement P(ours > method) on final S_E with its interval
   (``experiments.stats``, rliable's estimators);
+- ``<task>_seeds``: S_E of every seed, one panel per method: what the IQM hides when few
+  seeds learn (with 6 seeds the IQM trims the best and the worst seed);
 - ``<task>_ablation``: S_E of ours and its ablations (IQM with 95 % intervals), where the
   folders hold any of them.
 
@@ -164,9 +166,18 @@ def per_seed(rows, task, method, column):
       by_step[int(r["env_step"])][r["seed"]] = float(r[column])
   n_seeds = max((len(v) for v in by_step.values()), default=0)
   steps = sorted(s for s, v in by_step.items() if len(v) == n_seeds)
-  seeds = sorted(by_step[steps[0]]) if steps else []
+  seeds = seed_ids(rows, task, method, column) if steps else []
   values = np.array([[by_step[s][k] for s in steps] for k in seeds], dtype=float)
   return np.array(steps, dtype=int), values.reshape(len(seeds), len(steps))
+
+
+def seed_ids(rows, task, method, column="eval_success") -> list[str]:
+  """The seeds of ``method`` with a value of ``column``, in numeric order (a job array's
+  folders one after the other: 0, 1, ..., 10, then 1/0, 1/1, ...): the rows of ``per_seed``'s
+  values."""
+  return sorted({r["seed"] for r in rows if r["task"] == task and r["method"] == method
+                 and r.get(column, "") != ""},
+                key=lambda seed: (seed.count("/"), [int(part) for part in seed.split("/")]))
 
 
 def curves(rows, task, method, column):
@@ -426,6 +437,24 @@ def _ablation_figure(plt, task, curves_, out) -> list[str]:
   return paths
 
 
+def _seeds_figure(plt, rows, task, methods, out) -> list[str]:
+  """S_E of each seed against env steps, one panel per method (the data the IQM summarises)."""
+  fig, axes = plt.subplots(1, len(methods), figsize=(max(4.2 * len(methods), 6.5), 3.6),
+                           sharey=True, squeeze=False)
+  for ax, m in zip(axes[0], methods):
+    steps, values = per_seed(rows, task, m, "eval_success")
+    for k, (seed, seed_values) in enumerate(zip(seed_ids(rows, task, m), values)):
+      ax.plot(steps, seed_values, lw=1.1, color=f"C{k % 10}", label=f"seed {seed}")
+    ax.set(title=f"{label(m)} ({len(values)} seeds)", xlabel=STEPS_LABEL, ylim=(-0.05, 1.05))
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, ncol=2, loc="upper left")
+  axes[0][0].set_ylabel("S_E of each seed")
+  fig.suptitle(f"{task}: S_E per seed")
+  paths = _finish(fig, out, f"{task.lower()}_seeds")
+  plt.close(fig)
+  return paths
+
+
 def figure_folders(dirs, out=None) -> dict:
   """Where each task's figures go: {folder: [task, ...]}; ``out`` for all, or else
   ``DIR/figures`` of the first of ``dirs`` that holds the task."""
@@ -495,6 +524,8 @@ def _draw(rows, out) -> list[str]:
 
     iqm = iqm_curves(rows, task, present)
     written += _iqm_figure(plt, task, iqm, [r for r in table if r["task"] == task], out)
+    if iqm:  # the methods with an evaluation
+      written += _seeds_figure(plt, rows, task, list(iqm), out)
     ablations = [m for m in ABLATIONS if m in iqm]
     if len(ablations) > 1:
       written += _ablation_figure(plt, task, {m: iqm[m] for m in ablations}, out)

@@ -248,8 +248,8 @@ def test_plots_are_drawn_from_a_run(reference, tmp_path):
   assert plot.main([reference, "--out", str(tmp_path)]) == 0
   names = sorted(os.listdir(tmp_path))
   assert names == ["pointmaze_iqm.pdf", "pointmaze_iqm.png", "pointmaze_modes.pdf",
-                   "pointmaze_modes.png", "pointmaze_success.pdf", "pointmaze_success.png",
-                   "summary.md"]
+                   "pointmaze_modes.png", "pointmaze_seeds.pdf", "pointmaze_seeds.png",
+                   "pointmaze_success.pdf", "pointmaze_success.png", "summary.md"]
   assert all(os.path.getsize(tmp_path / n) > 5000 for n in names if n != "summary.md")
   assert "| PointMaze | Ref:PPO | 2 | 800 |" in (tmp_path / "summary.md").read_text()
   steps, mean, std, n = plot.curves(_rows(reference), "PointMaze", "ours", "cum_steps_RANDOM")

@@ -123,7 +123,7 @@ def test_table_summary_file_and_figures(runs, tmp_path, capsys):
   assert "stratified-bootstrap" in summary and line in summary
   names = sorted(os.listdir(out))
   assert names == sorted(f"pointmaze_{kind}.{ext}" for kind in
-                         ("success", "modes", "iqm", "ablation") for ext in ("png", "pdf")) + [
+                         ("success", "modes", "iqm", "seeds", "ablation") for ext in ("png", "pdf")) + [
                              "summary.md"]
   assert all(str(out / n) in printed for n in names)
   assert all(os.path.getsize(out / n) > 5000 for n in names if n != "summary.md")
@@ -216,9 +216,23 @@ def test_folders_of_a_job_array_merge_their_seeds(tmp_path):
       w.writerows(rows)
   rows = plot.load([str(tmp_path / "run0"), str(tmp_path / "run1")])
   steps, values = plot.per_seed(rows, "PointMaze", "ours", "eval_success")
-  assert values.shape == (6, 2) and sorted(values[:, -1]) == [0, 0, 0, 1, 1, 1]
+  assert values.shape == (6, 2) and list(values[:, -1]) == [0, 0, 0, 1, 1, 1]
+  assert plot.seed_ids(rows, "PointMaze", "ours") == ["0", "1", "2", "1/0", "1/1", "1/2"]
   (r,) = plot.summary(rows, reps=100)
   assert r["seeds"] == 6
+
+
+def test_seeds_come_in_numeric_order(tmp_path):
+  """Seed 10 comes after seed 9, not after seed 1: the per-seed table and figure list seeds
+  in the order they were run."""
+  S_E["twelve"] = [(0.0, 0.0, k / 20) for k in range(12)]
+  try:
+    rows = plot.load([_write(tmp_path / "x", ["twelve"])])
+  finally:
+    del S_E["twelve"]
+  assert plot.seed_ids(rows, "PointMaze", "twelve") == [str(k) for k in range(12)]
+  steps, values = plot.per_seed(rows, "PointMaze", "twelve", "eval_success")
+  assert list(values[:, -1]) == [k / 20 for k in range(12)]
 
 
 def test_env_step_axes_read_in_thousands_and_millions(tmp_path):
