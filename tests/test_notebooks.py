@@ -46,7 +46,7 @@ def test_quickstart_trains_plots_and_renders(quickstart):
   nb, out = quickstart
   assert os.path.exists(os.path.join(out, "metrics.csv"))
   assert os.path.exists(os.path.join(out, "ours_seed0.gif"))
-  assert len(_outputs(nb, "image/png")) == 3  # success, modes and IQM figures
+  assert len(_outputs(nb, "image/png")) == 4  # success, modes, IQM and per-seed figures
   assert len(_outputs(nb, "image/gif")) == 1
   assert any("| PointMaze | Ours |" in o["data"]["text/markdown"]
              for o in _outputs(nb, "text/markdown"))
@@ -57,7 +57,7 @@ def test_paper_figures_from_a_results_folder(quickstart, tmp_path, monkeypatch):
   figures = str(tmp_path / "figs")
   nb = _execute("paper_figures.ipynb", f"RUN_DIRS = [{out!r}]\nFIGURES = {figures!r}",
                 monkeypatch)
-  assert len(_outputs(nb, "image/png")) == 3
+  assert len(_outputs(nb, "image/png")) == 4
   assert sorted(os.listdir(figures))[:2] == ["pointmaze_iqm.pdf", "pointmaze_iqm.png"]
   assert "summary.md" in os.listdir(figures)
 
