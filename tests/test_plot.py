@@ -122,9 +122,9 @@ def test_table_summary_file_and_figures(runs, tmp_path, capsys):
   summary = (out / "summary.md").read_text()
   assert "stratified-bootstrap" in summary and line in summary
   names = sorted(os.listdir(out))
-  assert names == sorted(f"pointmaze_{kind}.{ext}" for kind in
-                         ("success", "modes", "iqm", "seeds", "ablation") for ext in ("png", "pdf")) + [
-                             "summary.md"]
+  kinds = ("success", "modes", "iqm", "seeds", "ablation")
+  assert names == sorted(f"pointmaze_{kind}.{ext}" for kind in kinds
+                         for ext in ("png", "pdf")) + ["summary.md"]
   assert all(str(out / n) in printed for n in names)
   assert all(os.path.getsize(out / n) > 5000 for n in names if n != "summary.md")
 
