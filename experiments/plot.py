@@ -157,27 +157,36 @@ def _row_ok(header, values) -> bool:
   return True
 
 
-def per_seed(rows, task, method, column):
-  """(steps, values): ``column`` of each seed (a row of ``values``) at each step where every
-  seed has a value (a column)."""
+def _seed_order(seed: str):
+  """Numeric order of seeds, a job array's folders one after the other (0, 1, ..., 10, then
+  1/0, 1/1, ...: ``_merged``)."""
+  return seed.count("/"), [int(part) for part in seed.split("/")]
+
+
+def _by_step(rows, task, method, column):
+  """(steps where every seed has a value, those seeds in ``_seed_order``, {step: {seed:
+  value}})."""
   by_step = defaultdict(dict)
   for r in rows:
     if r["task"] == task and r["method"] == method and r.get(column, "") != "":
       by_step[int(r["env_step"])][r["seed"]] = float(r[column])
   n_seeds = max((len(v) for v in by_step.values()), default=0)
   steps = sorted(s for s, v in by_step.items() if len(v) == n_seeds)
-  seeds = seed_ids(rows, task, method, column) if steps else []
+  seeds = sorted(by_step[steps[0]], key=_seed_order) if steps else []
+  return steps, seeds, by_step
+
+
+def per_seed(rows, task, method, column):
+  """(steps, values): ``column`` of each seed (a row of ``values``, in ``seed_ids`` order) at
+  each step where every seed has a value (a column)."""
+  steps, seeds, by_step = _by_step(rows, task, method, column)
   values = np.array([[by_step[s][k] for s in steps] for k in seeds], dtype=float)
   return np.array(steps, dtype=int), values.reshape(len(seeds), len(steps))
 
 
 def seed_ids(rows, task, method, column="eval_success") -> list[str]:
-  """The seeds of ``method`` with a value of ``column``, in numeric order (a job array's
-  folders one after the other: 0, 1, ..., 10, then 1/0, 1/1, ...): the rows of ``per_seed``'s
-  values."""
-  return sorted({r["seed"] for r in rows if r["task"] == task and r["method"] == method
-                 and r.get(column, "") != ""},
-                key=lambda seed: (seed.count("/"), [int(part) for part in seed.split("/")]))
+  """The seeds of ``per_seed``'s rows of values, in numeric order."""
+  return _by_step(rows, task, method, column)[1]
 
 
 def curves(rows, task, method, column):

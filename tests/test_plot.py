@@ -233,6 +233,10 @@ def test_seeds_come_in_numeric_order(tmp_path):
   assert plot.seed_ids(rows, "PointMaze", "twelve") == [str(k) for k in range(12)]
   steps, values = plot.per_seed(rows, "PointMaze", "twelve", "eval_success")
   assert list(values[:, -1]) == [k / 20 for k in range(12)]
+  # a seed with a value only at a step the others have not reached stays out of both
+  rows.append({**rows[-1], "seed": "12", "env_step": "500"})
+  assert plot.seed_ids(rows, "PointMaze", "twelve") == [str(k) for k in range(12)]
+  assert plot.per_seed(rows, "PointMaze", "twelve", "eval_success")[1].shape == (12, 3)
 
 
 def test_env_step_axes_read_in_thousands_and_millions(tmp_path):
