@@ -222,14 +222,11 @@ def test_folders_of_a_job_array_merge_their_seeds(tmp_path):
   assert r["seeds"] == 6
 
 
-def test_seeds_come_in_numeric_order(tmp_path):
+def test_seeds_come_in_numeric_order(tmp_path, monkeypatch):
   """Seed 10 comes after seed 9, not after seed 1: the per-seed table and figure list seeds
   in the order they were run."""
-  S_E["twelve"] = [(0.0, 0.0, k / 20) for k in range(12)]
-  try:
-    rows = plot.load([_write(tmp_path / "x", ["twelve"])])
-  finally:
-    del S_E["twelve"]
+  monkeypatch.setitem(S_E, "twelve", [(0.0, 0.0, k / 20) for k in range(12)])
+  rows = plot.load([_write(tmp_path / "x", ["twelve"])])
   assert plot.seed_ids(rows, "PointMaze", "twelve") == [str(k) for k in range(12)]
   steps, values = plot.per_seed(rows, "PointMaze", "twelve", "eval_success")
   assert list(values[:, -1]) == [k / 20 for k in range(12)]
