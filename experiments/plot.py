@@ -46,6 +46,8 @@ LABELS = {"ours": "Ours", "hiro": "HIRO", "ref-uniform": "Ref:Uniform", "ref-ppo
 ABLATIONS = ("ours", "ours-no-reward-mod", "ours-no-loss-mod", "ours-no-mods")
 MODE_COLORS = {"TD3": "tab:blue", "PPO": "tab:orange", "RANDOM": "tab:green"}
 STEPS_LABEL = "env steps"  # the x label of every step axis; `_finish` formats those axes
+SEEDS_COLUMNS = 4  # panels a row of the per-seed figure
+SEEDS_LEGEND = 12  # seeds a panel of it names in a legend, at most
 
 
 def label(variant: str) -> str:
@@ -447,17 +449,25 @@ def _ablation_figure(plt, task, curves_, out) -> list[str]:
 
 
 def _seeds_figure(plt, rows, task, methods, out) -> list[str]:
-  """S_E of each seed against env steps, one panel per method (the data the IQM summarises)."""
-  fig, axes = plt.subplots(1, len(methods), figsize=(max(4.2 * len(methods), 6.5), 3.6),
-                           sharey=True, squeeze=False)
-  for ax, m in zip(axes[0], methods):
+  """S_E of each seed against env steps, one panel per method (the data the IQM summarises),
+  at most ``SEEDS_COLUMNS`` panels a row; a legend while there are at most ``SEEDS_LEGEND``
+  seeds (more would hide the curves)."""
+  cols = min(len(methods), SEEDS_COLUMNS)
+  rows_of_panels = -(-len(methods) // cols)
+  fig, axes = plt.subplots(rows_of_panels, cols, sharey=True, squeeze=False,
+                           figsize=(max(4.2 * cols, 6.5), 3.6 * rows_of_panels))
+  for ax in axes.flat[len(methods):]:
+    ax.set_visible(False)
+  for ax, m in zip(axes.flat, methods):
     steps, values = per_seed(rows, task, m, "eval_success")
     for k, (seed, seed_values) in enumerate(zip(seed_ids(rows, task, m), values)):
       ax.plot(steps, seed_values, lw=1.1, color=f"C{k % 10}", label=f"seed {seed}")
     ax.set(title=f"{label(m)} ({len(values)} seeds)", xlabel=STEPS_LABEL, ylim=(-0.05, 1.05))
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=7, ncol=2, loc="upper left")
-  axes[0][0].set_ylabel("S_E of each seed")
+    if len(values) <= SEEDS_LEGEND:
+      ax.legend(fontsize=7, ncol=2, loc="upper left")
+  for row in axes:
+    row[0].set_ylabel("S_E of each seed")
   fig.suptitle(f"{task}: S_E per seed")
   paths = _finish(fig, out, f"{task.lower()}_seeds")
   plt.close(fig)

@@ -251,3 +251,25 @@ def test_env_step_axes_read_in_thousands_and_millions(tmp_path):
   assert {"200k", "1M"} <= {t.get_text() for t in steps_ax.get_xticklabels()}
   assert "1M" not in [t.get_text() for t in other_ax.get_xticklabels()]
   plt.close(fig)
+
+
+def test_seeds_figure_wraps_its_panels_and_names_few_seeds(tmp_path, monkeypatch):
+  """Six methods draw two rows of panels (four, then two) rather than one strip six panels
+  wide; a panel names its seeds in a legend only while they are few enough to read."""
+  import matplotlib
+  matplotlib.use("Agg")
+  import matplotlib.pyplot as plt
+  monkeypatch.setitem(S_E, "many", [(0.0, 0.0, k / 20) for k in range(plot.SEEDS_LEGEND + 1)])
+  methods = ["ours", "hiro", "ref-uniform", "ref-ppo", "ours-no-mods", "many"]
+  rows = plot.load([_write(tmp_path / "x", methods)])
+  figures = []
+  monkeypatch.setattr(plot, "_finish", lambda fig, out, name: figures.append(fig) or [])
+  plot._seeds_figure(plt, rows, "PointMaze", methods, str(tmp_path))
+  (fig,) = figures  # closed by now; its axes stay readable
+  fig.canvas.draw()
+  shown = [ax for ax in fig.axes if ax.get_visible()]
+  assert len(fig.axes) == 8 and [ax.get_title() for ax in shown] == [
+      f"{plot.label(m)} ({len(S_E[m])} seeds)" for m in methods]
+  assert {round(ax.get_position().y0, 2) for ax in shown[:4]} != {
+      round(ax.get_position().y0, 2) for ax in shown[4:]}  # a second row
+  assert [ax.get_legend() is not None for ax in shown] == [True] * 5 + [False]
