@@ -165,9 +165,9 @@ def _seed_order(seed: str):
   return seed.count("/"), [int(part) for part in seed.split("/")]
 
 
-def _by_step(rows, task, method, column):
-  """(steps where every seed has a value, those seeds in ``_seed_order``, {step: {seed:
-  value}})."""
+def _seed_table(rows, task, method, column):
+  """(steps, seeds, values): the steps where every seed has a value of ``column``, those
+  seeds in ``_seed_order``, and their values (a row per seed, a column per step)."""
   by_step = defaultdict(dict)
   for r in rows:
     if r["task"] == task and r["method"] == method and r.get(column, "") != "":
@@ -175,20 +175,20 @@ def _by_step(rows, task, method, column):
   n_seeds = max((len(v) for v in by_step.values()), default=0)
   steps = sorted(s for s, v in by_step.items() if len(v) == n_seeds)
   seeds = sorted(by_step[steps[0]], key=_seed_order) if steps else []
-  return steps, seeds, by_step
+  values = np.array([[by_step[s][k] for s in steps] for k in seeds], dtype=float)
+  return np.array(steps, dtype=int), seeds, values.reshape(len(seeds), len(steps))
 
 
 def per_seed(rows, task, method, column):
   """(steps, values): ``column`` of each seed (a row of ``values``, in ``seed_ids`` order) at
   each step where every seed has a value (a column)."""
-  steps, seeds, by_step = _by_step(rows, task, method, column)
-  values = np.array([[by_step[s][k] for s in steps] for k in seeds], dtype=float)
-  return np.array(steps, dtype=int), values.reshape(len(seeds), len(steps))
+  steps, _, values = _seed_table(rows, task, method, column)
+  return steps, values
 
 
 def seed_ids(rows, task, method, column="eval_success") -> list[str]:
   """The seeds of ``per_seed``'s rows of values, in numeric order."""
-  return _by_step(rows, task, method, column)[1]
+  return _seed_table(rows, task, method, column)[1]
 
 
 def curves(rows, task, method, column):
@@ -459,8 +459,8 @@ def _seeds_figure(plt, rows, task, methods, out) -> list[str]:
   for ax in axes.flat[len(methods):]:
     ax.set_visible(False)
   for ax, m in zip(axes.flat, methods):
-    steps, values = per_seed(rows, task, m, "eval_success")
-    for k, (seed, seed_values) in enumerate(zip(seed_ids(rows, task, m), values)):
+    steps, seeds, values = _seed_table(rows, task, m, "eval_success")
+    for k, (seed, seed_values) in enumerate(zip(seeds, values)):
       ax.plot(steps, seed_values, lw=1.1, color=f"C{k % 10}", label=f"seed {seed}")
     ax.set(title=f"{label(m)} ({len(values)} seeds)", xlabel=STEPS_LABEL, ylim=(-0.05, 1.05))
     ax.grid(alpha=0.3)
