@@ -18,15 +18,28 @@ the runs of one task. Here a score is a seed's S_E (final, best, or at each eval
   as ``arch``'s ``conf_int(method="percentile")``).
 
 ``REPS`` = 2000 replicates by default (rliable: 2000 for its performance profiles, 50000 for
-interval estimates): with 5-8 seeds the bootstrap distribution has only 126-6435 distinct
-resamples, and the Monte Carlo error of a 2.5 % percentile from 2000 replicates is
-sqrt(0.025 x 0.975 / 2000) = 0.35 percentile points, small next to the interval's width, while
-a table of every task and method stays under a second. Replicates are drawn from a numpy
-Generator seeded by ``seed``: the same call gives the same interval.
+interval estimates), drawn from a numpy Generator seeded by ``seed``: the same call gives the
+same interval, and a table of every task and method stays under a second. The Monte Carlo
+error of a 2.5 % percentile from 2000 replicates is sqrt(0.025 x 0.975 / 2000) = 0.35
+percentile points; with 5-8 seeds the bootstrap distribution has only 126-6435 distinct
+resamples (as multisets) and gaps between them, so an end can move by a large step with the
+draw. A reading that compares an end with a level or with another interval by a small margin
+can then flip with ``seed`` (the Ant Push study's claim 4a, ``results/antpush/README.md``).
+
+``reps="exact"`` computes the interval from every resample instead of a draw: each array's
+n^n equally likely resamples of its n runs per task (and the product of these over tasks and
+over several arrays), enumerated as the multisets they form, each weighted by the number of
+ordered resamples it stands for, and the same percentiles (``np.percentile``'s linear
+interpolation over all n^n values, computed from the weights). That needs a statistic that
+does not depend on the order of the runs (``iqm`` and ``probability_of_improvement`` do not)
+and at most ``EXACT_LIMIT`` multisets in all: 6 runs have 462 (of 46,656 resamples), 10 runs
+92,378; P(X > Y) of 6 runs against 6 is 462^2 = 213,444.
 """
 
 from __future__ import annotations
 
+import itertools
+import math
 from typing import Callable
 
 import numpy as np
@@ -34,6 +47,8 @@ import scipy.stats
 
 REPS = 2000
 SIZE = 0.95
+EXACT_LIMIT = 1_000_000  # multisets that reps="exact" enumerates, over all arrays and tasks
+CHUNK = 20_000  # exact replicates computed at once (memory)
 
 
 def iqm(scores) -> np.ndarray:
@@ -68,28 +83,90 @@ def resample(scores: np.ndarray, reps: int, rng: np.random.Generator) -> np.ndar
   return np.take_along_axis(scores[..., None], idx, axis=0)
 
 
-def interval(statistic: Callable[..., np.ndarray], *scores, reps: int = REPS,
+def multisets(n: int):
+  """Every resample of n runs up to order: (K, n) sorted run indices, K = C(2n - 1, n), and
+  (K,) how many of the n^n ordered resamples each one is (n! / prod of its counts!)."""
+  idx = np.array(list(itertools.combinations_with_replacement(range(n), n)), dtype=np.intp)
+  counts = (idx[:, :, None] == np.arange(n)).sum(1)
+  factorial = np.array([math.factorial(k) for k in range(n + 1)], dtype=np.int64)
+  return idx, factorial[n] // factorial[counts].prod(1)
+
+
+def _exact_replicates(statistic, scores: list[np.ndarray]):
+  """``statistic`` of every distinct stratified resample of ``scores`` (the replicates on a
+  last axis) and each one's weight, the number of ordered resamples it stands for."""
+  sets = {n: multisets(n) for n in {s.shape[0] for s in scores}}
+  dims = [len(sets[s.shape[0]][0]) for s in scores for _ in range(s.shape[1])]
+  total = math.prod(dims)
+  if total > EXACT_LIMIT:
+    raise ValueError(f"reps='exact' needs {total} resamples as multisets (runs per array "
+                     f"{[s.shape[0] for s in scores]}, tasks {[s.shape[1] for s in scores]}), "
+                     f"more than EXACT_LIMIT = {EXACT_LIMIT}; give an integer reps")
+  values, weights = [], []
+  for start in range(0, total, CHUNK):
+    which = np.unravel_index(np.arange(start, min(start + CHUNK, total)), dims)
+    weight, k, drawn = np.ones(len(which[0]), dtype=np.int64), 0, []
+    for s in scores:
+      idx, mult = sets[s.shape[0]]
+      per_task = []
+      for _ in range(s.shape[1]):
+        per_task.append(idx[which[k]].T)  # (runs, m)
+        weight, k = weight * mult[which[k]], k + 1
+      cols = np.stack(per_task, axis=1).reshape(s.shape[:2] + (1,) * (s.ndim - 2) + (-1,))
+      drawn.append(np.take_along_axis(s[..., None], cols, axis=0))
+    values.append(statistic(*drawn))
+    weights.append(weight)
+  return np.concatenate(values, axis=-1), np.concatenate(weights)
+
+
+def weighted_percentile(values, weights, q):
+  """``np.percentile(np.repeat(values, weights, axis=-1), q, axis=-1)`` (linear), without
+  building the repeated array: ``weights`` are integer counts of each value (last axis)."""
+  values, weights = np.asarray(values, dtype=float), np.asarray(weights, dtype=np.int64)
+  order = np.argsort(values, axis=-1, kind="stable")
+  v = np.take_along_axis(values, order, axis=-1)
+  cum = np.cumsum(weights[order], axis=-1)
+  n = cum[..., -1:]
+  out = []
+  for p in np.atleast_1d(q):
+    pos = p / 100 * (n - 1)
+    lo = np.floor(pos)
+    i = np.minimum((cum <= lo).sum(-1, keepdims=True), v.shape[-1] - 1)
+    j = np.minimum((cum <= lo + 1).sum(-1, keepdims=True), v.shape[-1] - 1)
+    a, b = np.take_along_axis(v, i, -1), np.take_along_axis(v, j, -1)
+    out.append((a + (pos - lo) * (b - a))[..., 0])
+  return np.stack(out) if np.ndim(q) else out[0]
+
+
+def interval(statistic: Callable[..., np.ndarray], *scores, reps=REPS,
              size: float = SIZE, seed: int = 0):
   """(point, lower, upper): ``statistic(*scores)`` and its stratified-bootstrap percentile
   interval of coverage ``size``.
 
   ``statistic`` reduces axes 0 and 1 (runs, tasks) of each argument and keeps any further
   ones (the replicates come on a last axis), as ``iqm`` and ``probability_of_improvement``
-  do. Several score arrays (P(X > Y)) are resampled independently of one another.
+  do. Several score arrays (P(X > Y)) are resampled independently of one another. ``reps``:
+  the number of replicates drawn (seeded by ``seed``), or "exact" for every resample (the
+  module's docstring; ``seed`` is then unused).
   """
-  if not (isinstance(reps, (int, np.integer)) and reps >= 1):
-    raise ValueError(f"reps must be an integer >= 1, got {reps!r}")
+  exact = isinstance(reps, str) and reps == "exact"
+  if not exact and not (isinstance(reps, (int, np.integer)) and reps >= 1):
+    raise ValueError(f"reps must be an integer >= 1 or 'exact', got {reps!r}")
   if not 0 < size < 1:
     raise ValueError(f"size must be in (0, 1), got {size!r}")
   scores = [as_scores(s) for s in scores]
-  rng = np.random.default_rng(seed)
-  replicates = statistic(*(resample(s, reps, rng) for s in scores))
   tail = 100 * (1 - size) / 2
-  lower, upper = np.percentile(replicates, [tail, 100 - tail], axis=-1)
+  if exact:
+    replicates, weights = _exact_replicates(statistic, scores)
+    lower, upper = weighted_percentile(replicates, weights, [tail, 100 - tail])
+  else:
+    rng = np.random.default_rng(seed)
+    replicates = statistic(*(resample(s, reps, rng) for s in scores))
+    lower, upper = np.percentile(replicates, [tail, 100 - tail], axis=-1)
   return statistic(*scores), lower, upper
 
 
-def iqm_curve(values, reps: int = REPS, size: float = SIZE, seed: int = 0):
+def iqm_curve(values, reps=REPS, size: float = SIZE, seed: int = 0):
   """(iqm, lower, upper) per step of one task's ``values`` (runs, steps): the aggregate
   curve with pointwise intervals (rliable's sample-efficiency curves)."""
   values = np.asarray(values, dtype=float)

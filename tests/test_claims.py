@@ -10,15 +10,18 @@ from nonmono_jax.host import io
 STEPS = np.arange(110_000, 1_000_001, 10_000)
 
 
-def _rows(method, s_e, ppo=2000, seeds=8, upto=1_000_000):
-  """metrics.csv rows of one method: S_E per (seed, step) from ``s_e(seed, step)``."""
+def _rows(method, s_e, ppo=2000, seeds=8, upto=1_000_000, modes=None):
+  """metrics.csv rows of one method: S_E per (seed, step) from ``s_e(seed, step)``; the mode
+  counts from ``modes`` (mode: per-seed counts) if given."""
   rows = []
   for step in STEPS[STEPS <= upto]:
     for seed in range(seeds):
       row = {c: "" for c in io.COLUMNS}
       row.update(task="AntPush", method=method, seed=str(seed), env_step=str(step),
                  eval_success=str(s_e(seed, step)))
-      for m, n in (("TD3", 50_000 + seed), ("PPO", ppo + 10 * seed), ("RANDOM", 500 + seed)):
+      counts = ({m: modes[m][seed] for m in modes} if modes else
+                {"TD3": 50_000 + seed, "PPO": ppo + 10 * seed, "RANDOM": 500 + seed})
+      for m, n in counts.items():
         for col in ("cum_steps", "cum_steps_after_start", "cum_decisions_after_start"):
           row[f"{col}_{m}"] = str(n)
       rows.append(row)
@@ -69,3 +72,26 @@ def test_a_run_still_going_is_read_only_where_the_protocol_reads_it():
   assert r["early_late"]["behind"] == "n/a (not reached)"
   assert r["modes"]["most_ppo_before_1m"].startswith("n/a")
   assert r["modes"]["order"].endswith("(at 300000, not judged)")
+
+
+def test_the_mode_order_on_the_monte_carlo_edge_and_exact():
+  """The study's per-seed mode counts at 1M (results/antpush/README.md, claim 4a): the
+  protocol's 2000 replicates (seed 0) read TD3 >> PPO, every resample reads TD3 ~ PPO."""
+  modes = {"TD3": [17351, 46526, 62326, 64301, 46261, 64041],
+           "PPO": [47650, 18475, 2675, 695, 18740, 960], "RANDOM": [0, 0, 0, 5, 0, 0]}
+  zero = lambda seed, t: 0.0
+  rows = (_rows("ours", zero, seeds=6, modes=modes)
+          + _rows("hiro", lambda seed, t: float(seed == 0 and t == 1_000_000), seeds=6))
+  assert claims.readings(rows)["modes"]["order"] == "TD3 >> PPO >> RANDOM"
+  r = claims.readings(rows, reps="exact")
+  assert r["modes"]["order"] == "TD3 ~ PPO >> RANDOM"
+  assert r["modes"]["td3"][1] == 31938.5 and r["modes"]["ppo"][2] == 33062.5
+  assert "every resample (exact)" in claims.markdown(r)
+  assert "2000 replicates drawn with seed 0" in claims.markdown(claims.readings(rows))
+
+
+def test_reps_on_the_command_line(tmp_path, capsys):
+  with pytest.raises(SystemExit):
+    claims.main([str(tmp_path), "--reps", "0"])
+  assert "positive integer or 'exact'" in capsys.readouterr().err
+  assert claims._reps("exact") == "exact" and claims._reps("50000") == 50000
