@@ -2,6 +2,7 @@
 
     python -m experiments.claims results/antpush          # prints the readings as markdown
     python -m experiments.claims results/antpush --reps exact   # every resample, no draw
+    python -m experiments.claims results/antpush --axis paper   # steps after the warm-up
 
 Each claim is judged from the run folders' ``metrics.csv`` rows (ours and HIRO, S_E of 50
 episodes every 10K steps) with the statistics of ``experiments.stats`` (IQM over seeds, the
@@ -122,7 +123,7 @@ def modes_reading(summary_row: dict) -> dict:
                                  f"n/a (at {summary_row['env_steps']} of {END})")}
 
 
-def readings(rows, reps=stats.REPS) -> dict:
+def readings(rows, reps=stats.REPS, axis: str = "env") -> dict:
   """Every claim's reading from the rows of ours and HIRO on AntPush; ``reps``: the bootstrap
   replicates of every interval (the protocol's 2000 by default), or "exact"."""
   ours = plot.per_seed(rows, TASK, "ours", "eval_success")
@@ -131,6 +132,7 @@ def readings(rows, reps=stats.REPS) -> dict:
     raise ValueError(f"{TASK} rows of both ours and hiro are needed")
   summary = {r["method"]: r for r in plot.summary(rows, reps=reps) if r["task"] == TASK}
   return {"steps": int(ours[0][-1]), "seeds": (len(ours[1]), len(hiro[1])), "reps": reps,
+          "axis": axis,
           "final": {m: final_reading(v, reps) for m, v in (("ours", ours), ("hiro", hiro))},
           "onset": onset_reading(*ours, reps=reps),
           "early_late": early_late_reading(ours, hiro, reps),
@@ -144,8 +146,9 @@ def _iv(iv, digits=2) -> str:
 def markdown(r: dict) -> str:
   f, o, e, m = r["final"], r["onset"], r["early_late"], r["modes"]
   lines = [
-      f"Ant Push, ours and HIRO at {r['steps']} env steps ({r['seeds'][0]} and "
-      f"{r['seeds'][1]} seeds). Intervals: 95 % stratified bootstrap, percentile, "
+      f"Ant Push, ours and HIRO at {r['steps']} {plot.AXES[r.get('axis', 'env')]} "
+      f"({r['seeds'][0]} and {r['seeds'][1]} seeds). Intervals: 95 % stratified bootstrap, "
+      f"percentile, "
       + ("every resample (exact)." if r["reps"] == "exact" else
          f"{r['reps']} replicates drawn with seed 0."), "",
       "| claim | reading | numbers |", "|---|---|---|",
@@ -193,9 +196,14 @@ def main(argv=None) -> int:
   p.add_argument("--reps", type=_reps, default=stats.REPS,
                  help=f"bootstrap replicates of every interval (default {stats.REPS}, the "
                  "protocol's), or 'exact' for every resample")
+  p.add_argument("--axis", choices=tuple(plot.AXES), default="env",
+                 help="read the claims' steps (1M, 250K, 500K-600K) as env steps (the "
+                      "protocol's, default) or on the paper's axis, after the warm-up (1M there "
+                      "is env step 1.1M)")
   args = p.parse_args(argv)
   try:
-    print(markdown(readings(plot.load(args.dirs), reps=args.reps)), end="")
+    rows = plot.load(args.dirs, args.axis)
+    print(markdown(readings(rows, reps=args.reps, axis=args.axis)), end="")
   except ValueError as e:
     print(f"error: {e}", file=sys.stderr)
     return 2

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import json
 import os
 import sys
 from collections import defaultdict
@@ -46,6 +47,9 @@ LABELS = {"ours": "Ours", "hiro": "HIRO", "ref-uniform": "Ref:Uniform", "ref-ppo
 ABLATIONS = ("ours", "ours-no-reward-mod", "ours-no-loss-mod", "ours-no-mods")
 MODE_COLORS = {"TD3": "tab:blue", "PPO": "tab:orange", "RANDOM": "tab:green"}
 STEPS_LABEL = "env steps"  # the x label of every step axis; `_finish` formats those axes
+# ``--axis paper``: the paper's x-axis, env steps after the warm-up (its code logs each value at
+# t - start_timestep, "All logs start after the first 100K steps")
+AXES = {"env": STEPS_LABEL, "paper": "env steps after the warm-up (the paper's axis)"}
 SEEDS_COLUMNS = 4  # panels a row of the per-seed figure
 SEEDS_LEGEND = 12  # seeds a panel of it names in a legend, at most
 
@@ -78,22 +82,55 @@ REQUIRED = ("task", "method", "seed", "env_step", "eval_success", "eval_return",
             *(f"cum_steps_{m}" for m in MODES))
 
 
-def load(dirs) -> list[dict]:
+def load(dirs, axis: str = "env") -> list[dict]:
   """Every folder's rows, all checked before anything is drawn; raises ValueError naming the
   file and line. A half-written last line (a run killed mid-row) is skipped, as resume does.
 
   A folder is a run folder (with ``metrics.csv``) or holds run folders at any depth (a
   results tree such as ``results/pointpush/<method>/``). Folders that repeat a task and method
-  (independent runs of a job array) add their seeds (``_merged``)."""
+  (independent runs of a job array) add their seeds (``_merged``). ``axis="paper"``: each
+  row's ``env_step`` is counted from the end of its run's warm-up (``paper_axis``), and the
+  rows before it are left out."""
+  if axis not in AXES:
+    raise ValueError(f"axis must be one of {', '.join(AXES)}, got {axis!r}")
   rows, runs, paths = [], defaultdict(int), []  # (task, method) -> run folders seen with it
   for d in dirs:
     for path in _metrics_files(d):
-      rows.extend(_merged(_read(path), runs))
+      read = _read(path)
+      rows.extend(_merged(paper_axis(read, path) if axis == "paper" else read, runs))
       paths.append(path)
   if not rows:
     raise ValueError(f"{', '.join(paths)}: no rows yet (no chunk of the run has finished): "
                      f"nothing to draw")
   return rows
+
+
+def warmups(path: str) -> dict:
+  """{method: its warm-up in env steps} from the ``config.json`` beside ``path`` (a
+  ``metrics.csv``): ``warmup_steps`` x ``num_envs`` of each variant's config."""
+  config = os.path.join(os.path.dirname(path), "config.json")
+  try:
+    with open(config) as f:
+      configs = json.load(f)["configs"]
+    return {m: int(c["warmup_steps"]) * int(c.get("num_envs", 1)) for m, c in configs.items()}
+  except (OSError, ValueError, KeyError, TypeError) as e:
+    raise ValueError(f"{config}: the paper's axis needs each run's warm-up from its config.json "
+                     f"({type(e).__name__}: {e})") from None
+
+
+def paper_axis(rows, path: str) -> list[dict]:
+  """``rows`` of the ``metrics.csv`` at ``path`` on the paper's axis: ``env_step`` minus the
+  run's warm-up (``warmups``), the rows inside the warm-up left out."""
+  warm = warmups(path)
+  missing = sorted({r["method"] for r in rows} - set(warm))
+  if missing:
+    raise ValueError(f"{path}: no warm-up for {', '.join(missing)} in its config.json")
+  out = []
+  for r in rows:
+    step = int(r["env_step"]) - warm[r["method"]]
+    if step > 0:
+      out.append({**r, "env_step": str(step)})
+  return out
 
 
 def _merged(rows, runs) -> list[dict]:
@@ -366,14 +403,16 @@ def _band(ax, steps, mean, std, label, color=None):
   ax.fill_between(steps, mean - std, mean + std, color=line.get_color(), alpha=0.2, lw=0)
 
 
-def _finish(fig, out, name):
+def _finish(fig, out, name, xlabel=STEPS_LABEL):
   """Save ``name`` as PNG and PDF; the PDF without its creation date, so that drawing the same
   files again writes the same bytes (committed figures change only when the data does).
-  Env-step axes are labelled 250k, 1M: six-digit tick labels run into each other."""
+  Env-step axes are labelled 250k, 1M: six-digit tick labels run into each other; ``xlabel``
+  names them (``AXES``)."""
   from matplotlib.ticker import EngFormatter
   for ax in fig.axes:
     if ax.get_xlabel() == STEPS_LABEL:
       ax.xaxis.set_major_formatter(EngFormatter(sep=""))
+      ax.set_xlabel(xlabel)
   fig.tight_layout()
   paths = []
   for ext in ("png", "pdf"):
@@ -410,7 +449,7 @@ def _intervals(ax, labels, estimates, colors):
   ax.grid(alpha=0.3, axis="x")
 
 
-def _iqm_figure(plt, task, curves_, table, out) -> list[str]:
+def _iqm_figure(plt, task, curves_, table, out, xlabel=STEPS_LABEL) -> list[str]:
   """IQM of S_E against env steps, final S_E as IQM with its interval and P(ours > method)."""
   baselines = [r for r in table if r["p_ours"] is not None]
   colors = {m: f"C{i}" for i, m in enumerate(curves_)}
@@ -429,12 +468,12 @@ def _iqm_figure(plt, task, curves_, table, out) -> list[str]:
                [r["p_ours"] for r in baselines], [colors[r["method"]] for r in baselines])
     axes[2].axvline(0.5, color="gray", ls="--", lw=1)
     axes[2].set(title="P(ours > method), final S_E (95% CI)", xlim=(-0.05, 1.05))
-  paths = _finish(fig, out, f"{task.lower()}_iqm")
+  paths = _finish(fig, out, f"{task.lower()}_iqm", xlabel)
   plt.close(fig)
   return paths
 
 
-def _ablation_figure(plt, task, curves_, out) -> list[str]:
+def _ablation_figure(plt, task, curves_, out, xlabel=STEPS_LABEL) -> list[str]:
   """S_E of ours and its ablations: IQM over seeds with pointwise 95 % intervals."""
   fig, ax = plt.subplots(figsize=(5.5, 4))
   for m, curve in curves_.items():
@@ -443,12 +482,12 @@ def _ablation_figure(plt, task, curves_, out) -> list[str]:
          ylim=(-0.05, 1.05))
   ax.legend(fontsize=8)
   ax.grid(alpha=0.3)
-  paths = _finish(fig, out, f"{task.lower()}_ablation")
+  paths = _finish(fig, out, f"{task.lower()}_ablation", xlabel)
   plt.close(fig)
   return paths
 
 
-def _seeds_figure(plt, rows, task, methods, out) -> list[str]:
+def _seeds_figure(plt, rows, task, methods, out, xlabel=STEPS_LABEL) -> list[str]:
   """S_E of each seed against env steps, one panel per method (the data the IQM summarises),
   at most ``SEEDS_COLUMNS`` panels a row; a legend while there are at most ``SEEDS_LEGEND``
   seeds (more would hide the curves)."""
@@ -469,7 +508,7 @@ def _seeds_figure(plt, rows, task, methods, out) -> list[str]:
   for row in axes:
     row[0].set_ylabel("S_E of each seed")
   fig.suptitle(f"{task}: S_E per seed")
-  paths = _finish(fig, out, f"{task.lower()}_seeds")
+  paths = _finish(fig, out, f"{task.lower()}_seeds", xlabel)
   plt.close(fig)
   return paths
 
@@ -487,17 +526,17 @@ def figure_folders(dirs, out=None) -> dict:
   return folders
 
 
-def plot(dirs, out=None) -> list[str]:
-  """Every task's figures and a ``summary.md`` per figure folder (``figure_folders``); the
-  files written."""
-  rows = load(dirs)
+def plot(dirs, out=None, axis: str = "env") -> list[str]:
+  """Every task's figures and a ``summary.md`` per figure folder (``figure_folders``), on the
+  env-step or the paper's axis (``load``); the files written."""
+  rows = load(dirs, axis)
   written = []
   for folder, tasks in figure_folders(dirs, out).items():
-    written += _draw([r for r in rows if r["task"] in tasks], folder)
+    written += _draw([r for r in rows if r["task"] in tasks], folder, AXES[axis])
   return written
 
 
-def _draw(rows, out) -> list[str]:
+def _draw(rows, out, xlabel=STEPS_LABEL) -> list[str]:
   """The figures of every task in ``rows`` and their ``summary.md`` into folder ``out``."""
   import matplotlib
   matplotlib.use("Agg")
@@ -521,7 +560,7 @@ def _draw(rows, out) -> list[str]:
     ax1.legend(fontsize=8)
     for ax in (ax1, ax2):
       ax.grid(alpha=0.3)
-    written += _finish(fig, out, f"{task.lower()}_success")
+    written += _finish(fig, out, f"{task.lower()}_success", xlabel)
     plt.close(fig)
 
     fig, axes = plt.subplots(1, len(present), figsize=(max(3.6 * len(present), 6.5), 3.4),
@@ -538,16 +577,17 @@ def _draw(rows, out) -> list[str]:
                           else "env steps run in the mode (cumulative)")
     axes[0][0].legend(fontsize=8)
     fig.suptitle(f"{task}: exploitation (TD3) and exploration (PPO, RANDOM)")
-    written += _finish(fig, out, f"{task.lower()}_modes")
+    written += _finish(fig, out, f"{task.lower()}_modes", xlabel)
     plt.close(fig)
 
     iqm = iqm_curves(rows, task, present)
-    written += _iqm_figure(plt, task, iqm, [r for r in table if r["task"] == task], out)
+    written += _iqm_figure(plt, task, iqm, [r for r in table if r["task"] == task], out,
+                           xlabel)
     if iqm:  # the methods with an evaluation
-      written += _seeds_figure(plt, rows, task, list(iqm), out)
+      written += _seeds_figure(plt, rows, task, list(iqm), out, xlabel)
     ablations = [m for m in ABLATIONS if m in iqm]
     if len(ablations) > 1:
-      written += _ablation_figure(plt, task, {m: iqm[m] for m in ablations}, out)
+      written += _ablation_figure(plt, task, {m: iqm[m] for m in ablations}, out, xlabel)
   path = os.path.join(out, "summary.md")
   with open(path, "w") as f:
     f.write(SUMMARY_NOTE.format(reps=stats.REPS) + tables(rows, table) + "\n")
@@ -563,10 +603,13 @@ def main(argv=None) -> int:
                       "that holds the task)")
   p.add_argument("--table", action="store_true",
                  help="also print a Markdown table of final / best S_E and mode counts")
+  p.add_argument("--axis", choices=tuple(AXES), default="env",
+                 help="x-axis: env steps (default) or the paper's, env steps after the "
+                      "warm-up (its code logs at t - start_timestep)")
   args = p.parse_args(argv)
   try:
-    written = plot(args.dirs, args.out)
-    rows = load(args.dirs) if args.table else None
+    written = plot(args.dirs, args.out, args.axis)
+    rows = load(args.dirs, args.axis) if args.table else None
   except ValueError as e:
     p.exit(2, f"{p.prog}: error: {e}\n")
   except OSError as e:  # the figure folder

@@ -95,3 +95,13 @@ def test_reps_on_the_command_line(tmp_path, capsys):
     claims.main([str(tmp_path), "--reps", "0"])
   assert "positive integer or 'exact'" in capsys.readouterr().err
   assert claims._reps("exact") == "exact" and claims._reps("50000") == 50000
+
+
+def test_the_claims_on_the_papers_axis(capsys):
+  """On the paper's axis the first study ends at 900K: its 1M claims are not read."""
+  import os
+  study = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "results", "antpush")
+  assert claims.main([study, "--axis", "paper"]) == 0
+  out = capsys.readouterr().out
+  assert "at 900000 env steps after the warm-up (the paper's axis)" in out
+  assert "n/a (at 900000 of 1000000)" in out

@@ -263,7 +263,7 @@ def test_seeds_figure_wraps_its_panels_and_names_few_seeds(tmp_path, monkeypatch
   methods = ["ours", "hiro", "ref-uniform", "ref-ppo", "ours-no-mods", "many"]
   rows = plot.load([_write(tmp_path / "x", methods)])
   figures = []
-  monkeypatch.setattr(plot, "_finish", lambda fig, out, name: figures.append(fig) or [])
+  monkeypatch.setattr(plot, "_finish", lambda fig, out, name, *_: figures.append(fig) or [])
   plot._seeds_figure(plt, rows, "PointMaze", methods, str(tmp_path))
   (fig,) = figures  # closed by now; its axes stay readable
   fig.canvas.draw()
@@ -273,3 +273,23 @@ def test_seeds_figure_wraps_its_panels_and_names_few_seeds(tmp_path, monkeypatch
   assert {round(ax.get_position().y0, 2) for ax in shown[:4]} != {
       round(ax.get_position().y0, 2) for ax in shown[4:]}  # a second row
   assert [ax.get_legend() is not None for ax in shown] == [True] * 5 + [False]
+
+
+def test_the_papers_axis_counts_from_the_end_of_warm_up(tmp_path):
+  """``--axis paper``: env step minus each run's warm-up (its config.json), the paper's x-axis
+  (its code logs at t - start_timestep); the first Ant Push study's first evaluation, at env
+  step 110K, is the paper's 10K, its last at 1M the paper's 900K."""
+  here = os.path.dirname(os.path.abspath(__file__))
+  study = os.path.join(here, "..", "results", "antpush")
+  env_rows, paper_rows = plot.load([study]), plot.load([study], axis="paper")
+  evaluated = lambda rows: sorted({int(r["env_step"]) for r in rows if r["eval_success"]})
+  assert evaluated(env_rows)[0] == 110_000 and evaluated(paper_rows)[0] == 10_000
+  assert max(evaluated(paper_rows)) == max(evaluated(env_rows)) - 100_000 == 900_000
+  assert len(paper_rows) < len(env_rows)  # the warm-up's rows are left out
+  run = tmp_path / "run"
+  run.mkdir()
+  (run / "metrics.csv").write_text(open(os.path.join(study, "ours", "metrics.csv")).read())
+  with pytest.raises(ValueError, match="the paper's axis needs each run's warm-up"):
+    plot.load([str(run)], axis="paper")
+  out = plot.plot([os.path.join(study, "ours")], str(tmp_path / "fig"), axis="paper")
+  assert any(p.endswith("antpush_iqm.png") for p in out)
