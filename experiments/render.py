@@ -1,7 +1,9 @@
 """A rollout of a trained policy as a GIF, drawn headless: ``python -m experiments.render DIR``.
 
 Loads the run's latest checkpoint of ``--method`` (default: the run's first), runs one episode
-of the evaluation policy (Middle TD3 + Low TD3 without noise, each goal held for c steps) for
+of the evaluation policy (Middle TD3 + Low TD3 without noise; each goal held for c steps, or
+with ``eval_goal="requery"``, the Ant presets', a new goal after every step as in the paper's
+code) for
 ``--seed`` (a number, or ``best`` / ``worst``: the seed with the highest / lowest S_E at the
 latest evaluation the checkpoint covers), and draws it from above: walls, chasm, the movable
 blocks where they are, the target with its success radius, the robot's path, and the Middle's
@@ -63,7 +65,9 @@ def rollout(run_dir: str, method: str | None = None, seed: int = 0, key: int = 0
                                              config.eval_target_networks)
   low_params, middle_params = pick(states.low.params), pick(states.middle.params)
   agent = trainer.agent
-  run_episode = evaluate.make_episode(env, config.c, agent.low.td3.act, agent.middle.policy)
+  goal_act = lambda params, obs, k: agent.middle.policy(params, obs)
+  run_episode = evaluate.make_episode(env, config.c, agent.low.td3.act, goal_act,
+                                      config.eval_goal)
 
   @jax.jit
   def episode(k):

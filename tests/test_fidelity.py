@@ -135,11 +135,12 @@ def test_evaluation_uses_the_target_actors():
   mp = mp.replace(target_actor=mid.init(jax.random.PRNGKey(3)).params.actor)
   key = jax.random.PRNGKey(4)
   mid_act = lambda params, obs: mid.act(params, obs, env.target)
-  on_targets = evaluate.make_evaluate(env, 10, learner.act, mid_act, 2)(lp, mp, key)
+  on_targets = evaluate.make_evaluate(env, 10, learner.act, mid_act, 2)(lp, mp, None, key)
   online = evaluate.make_evaluate(env, 10, learner.act, mid_act, 2, target_networks=False)
-  swapped = online(lp.replace(actor=lp.target_actor), mp.replace(actor=mp.target_actor), key)
-  np.testing.assert_allclose(on_targets, swapped)
-  assert not np.allclose(on_targets[1], online(lp, mp, key)[1])
+  swapped = online(lp.replace(actor=lp.target_actor), mp.replace(actor=mp.target_actor), None,
+                   key)
+  jax.tree.map(np.testing.assert_allclose, on_targets, swapped)
+  assert not np.allclose(on_targets.distance, online(lp, mp, None, key).distance)
 
 
 def test_table_counts_modes_in_middle_decisions():

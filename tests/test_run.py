@@ -111,6 +111,18 @@ def old_run(tmp_path_factory):
   return out, recorder, results
 
 
+def test_metrics_csv_shows_the_low_and_each_evaluation_the_run_makes(old_run):
+  """The Low's columns in every row; S_E per evaluation kind where the run evaluates it (the
+  point preset: only the held goals, which is its S_E)."""
+  rows = io.MetricsFile(os.path.join(old_run[0], "metrics.csv")).read()
+  assert rows and all(r[c] != "" for r in rows for c in io.LOW_COLUMNS)
+  assert all(-100 < float(r["low_reward"]) < 0 and 0 <= float(r["low_subgoal_reached"]) <= 1
+             for r in rows)
+  evaluated = [r for r in rows if r["eval_success"] != ""]
+  assert evaluated and all(r["eval_success_held"] == r["eval_success"] for r in evaluated)
+  assert all(r["eval_success_requery"] == r["eval_success_ppo"] == "" for r in rows)
+
+
 def test_every_metric_reaches_the_json_lines_file(old_run):
   out, recorder, results = old_run
   assert [c[0] for c in recorder.calls] == ["begin", "write", "write", "close"]
@@ -303,3 +315,39 @@ def test_the_task_registry_names_each_task_once():
   assert methods.TASKS["PointPush"].random_success == 0.004
   with pytest.raises(ValueError, match="no task named 'antswim'"):
     methods.task_of_module("experiments.antswim")
+
+
+def test_fields_added_since_a_run_keep_the_behaviour_it_ran_with():
+  """The first Ant Push study's config.json predates the code's evaluation, the Middle TD3's
+  first state and the warm-up goals, which today's Ant presets take: loaded, its configs keep
+  the earlier behaviour (the fields' defaults), so it resumes and reproduces as it ran."""
+  plan = plan_lib.load_run(os.path.join(ROOT, "results", "antpush", "ours"))
+  config = plan.configs["ours"]
+  assert (config.eval_goal, config.eval_all, config.middle_td3_first_state,
+          config.warmup_goal) == ("held", False, "last", "uniform")
+  assert config.episode_start == "last"  # what it saved stays
+  today = methods.make_config("ours", "AntPush")
+  assert (today.eval_goal, today.middle_td3_first_state) == ("requery", "reset")
+  assert any("has no middle_td3_first_state" in w and "the behaviour before they were added"
+             in w for w in plan.warnings)
+
+
+def test_a_checkpoint_without_the_later_state_fields_is_filled_as_its_code_ran():
+  """``SeedState.filled``: the Middle TD3's s_0 of the current segment is the segment's first
+  state (what the code before ``segment_start`` stored), the per-kind S_E zero."""
+  import jax
+  import jax.numpy as jp
+  import numpy as np
+  import envs
+  from nonmono_jax.core import agent as agent_lib
+
+  config = methods.make_config("ours", "PointMaze", {**TINY_OVERRIDES})
+  agent = agent_lib.make_agent(envs.make("PointMaze", episode_length=100), config)
+  state = jax.vmap(agent.init)(jax.random.split(jax.random.PRNGKey(0), 2))
+  n = len(jax.tree.leaves(state))
+  junk = state.replace(segment_start=jp.full_like(state.segment_start, 7.0),
+                       eval_by_kind=jp.ones_like(state.eval_by_kind))
+  old = junk.filled(n - 2)  # a checkpoint of the fields before segment_start
+  np.testing.assert_array_equal(old.segment_start, state.segment.obs[..., 0, :])
+  np.testing.assert_array_equal(old.eval_by_kind, 0.0)
+  assert junk.filled(n).segment_start.max() == 7.0  # nothing missing: nothing changes

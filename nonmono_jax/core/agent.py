@@ -68,6 +68,23 @@ class SeedState:
   eval_distance: jax.Array  # and its mean final distance to the target
   eval_return: jax.Array  # and its mean episode return
   key: jax.Array
+  # Fields added later go last, so that older checkpoints restore by leaf position (io.py).
+  segment_start: jax.Array  # (E, obs) the Middle TD3's s_0 of the current segment (middle.py)
+  eval_by_kind: jax.Array  # (3,) the latest S_E of each evaluation kind (evaluate.KINDS)
+
+  def filled(self, saved_leaves: int) -> "SeedState":
+    """This state restored from a checkpoint that held only its first ``saved_leaves``
+    leaves (written before the last fields were added), the missing fields set as the code
+    of that checkpoint behaved: ``segment_start`` is the segment's first state, the latest
+    S_E per kind 0 (none yet). Works on one seed's state or the lanes' (leading axes)."""
+    n, changes = 0, {}
+    for field in dataclasses.fields(self):
+      if n >= saved_leaves and field.name == "segment_start":
+        changes["segment_start"] = self.segment.obs[..., 0, :]
+      elif n >= saved_leaves and field.name == "eval_by_kind":
+        changes["eval_by_kind"] = jp.zeros_like(self.eval_by_kind)
+      n += len(jax.tree.leaves(getattr(self, field.name)))
+    return self.replace(**changes)
 
   def learner_params(self) -> dict:
     """The parameters of every learner the seed has, by level name (for NaN checks)."""
@@ -149,8 +166,7 @@ class Agent:
   chooser: modes.ModeChooser
   init: Callable[[jax.Array], SeedState]
   step: Callable[..., tuple[SeedState, dict]]  # (state, t, hp) -> (state, metrics)
-  evaluate: Callable[..., tuple]  # (low params, middle params, key) -> S_E, distance, return,
-  # unstable steps
+  evaluate: Callable[..., evaluate_lib.Evaluation]  # (state, t, key) -> Evaluation
 
 
 @dataclasses.dataclass(frozen=True)
@@ -162,7 +178,7 @@ class _Parts:
   low: Low
   middle: Middle
   chooser: modes.ModeChooser
-  evaluate: Callable[..., tuple]
+  evaluator: evaluate_lib.Evaluator
 
 
 def _per_env(fn, shared, per_env):
@@ -191,7 +207,7 @@ def _new_segments(p: _Parts, state, obs, key, warm, t, noise):
       lambda sh, e: p.middle.goal(sh["td3"], sh["ppo"], e["obs"], e["mode"], e["key"], warm, t,
                                   sh["noise"]),
       shared, per_env)
-  return state.replace(goal=goal, segment=jax.vmap(p.middle.new_segment)(
+  return state.replace(goal=goal, segment_start=obs, segment=jax.vmap(p.middle.new_segment)(
       obs, goal, ppo_action, log_prob))
 
 
@@ -211,7 +227,8 @@ def _init(p: _Parts, key) -> SeedState:
                                              jp.zeros((E, hierarchy.GOAL_SIZE)), jp.zeros(E)),
       mode=mode, mode_steps=zeros_modes, mode_decisions=zeros_modes,
       mode_steps_after_start=zeros_modes, mode_decisions_after_start=zeros_modes,
-      s_e=jp.zeros(()), eval_distance=jp.zeros(()), eval_return=jp.zeros(()), key=keys.next)
+      s_e=jp.zeros(()), eval_distance=jp.zeros(()), eval_return=jp.zeros(()), key=keys.next,
+      segment_start=env_state.obs, eval_by_kind=jp.zeros((len(evaluate_lib.KINDS),)))
   # Random goals in warm-up: the goal noise does not matter here.
   return _new_segments(p, state, env_state.obs, keys.goals, True, 0,
                        p.config.middle_goal_noise)
@@ -258,13 +275,26 @@ def _reset(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys) -> SeedSta
   """Episode end. It falls on a segment's end (episode_length is a multiple of c), after s_c
   is recorded. With ``episode_start="reset"`` the reset comes before the segment's end, so the
   next goal and mode are chosen from the new state; with ``"last"`` (the paper's code) after
-  it: they are chosen from the episode's last state, and the relative goal carries over."""
+  it: they are chosen from the episode's last state, and the relative goal carries over. The
+  new segment's Middle TD3 s_0 is then that last state, or with
+  ``middle_td3_first_state="reset"`` (the code) the reset state."""
+  td3_from_reset = p.config.middle_td3_first_state == "reset"
 
   def reset(state):
-    return state.replace(env=jax.vmap(p.env.reset)(jax.random.split(keys.reset,
-                                                                    p.config.num_envs)))
+    env = jax.vmap(p.env.reset)(jax.random.split(keys.reset, p.config.num_envs))
+    start = env.obs if td3_from_reset else state.segment_start
+    return state.replace(env=env, segment_start=start)
 
   return jax.lax.cond(clock.episode_end, reset, lambda s: s, state)
+
+
+def _subgoals(goal) -> dict:
+  """The Low's competence at a segment's end: the remaining offset to its subgoal, ||g_c||, and
+  whether it came within the Low's done distance (1.5), averaged over envs and segments."""
+  dist = jp.linalg.norm(goal, axis=-1)
+  reached = (dist <= hierarchy.LOW_DONE_DISTANCE).astype(jp.float32)
+  return {"low/subgoal_distance": Metric.when(dist.mean(), 1.0),
+          "low/subgoal_reached": Metric.when(reached.mean(), 1.0)}
 
 
 def _end_segment(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys, hp: Numbers):
@@ -273,11 +303,11 @@ def _end_segment(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys, hp: 
   t, warmup = clock.t, p.config.warmup_steps
 
   def end_segment(state):
-    per_env = {"segment": state.segment,
+    per_env = {"segment": state.segment, "start": state.segment_start,
                "key": jax.random.split(keys.relabel, p.config.num_envs)}
     items, steps = _per_env(
         lambda low_params, e: p.middle.close(e["segment"], clock.episode_end, low_params,
-                                             e["key"]), state.low.params, per_env)
+                                             e["key"], e["start"]), state.low.params, per_env)
     state = state.replace(middle_buffer=buffers.add(state.middle_buffer, items),
                           middle_ppo=p.middle.explorer.store(state.middle_ppo, t, steps))
     decision = modes.Decision(t=t, episode_end=clock.episode_end, obs=state.env.obs,
@@ -287,7 +317,7 @@ def _end_segment(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys, hp: 
     state, decided = _count(state.replace(chooser=chooser, mode=mode), t + 1 >= warmup,
                             t + 1 >= p.chooser.live_from, "mode_decisions",
                             "mode_decisions_after_start")
-    m = {**m, **_counts("decisions", decided)}
+    m = {**m, **_counts("decisions", decided), **_subgoals(state.goal)}
     return _new_segments(p, state, state.env.obs, keys.goals, t + 1 < warmup, t,
                          hp.middle_goal_noise), m
 
@@ -328,12 +358,22 @@ def _evaluation(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys, hp: N
   ran = clock.live & ((clock.t + 1) % p.config.eval_every == 0)
 
   def evaluation(state):
-    s_e, dist, ret, unstable = p.evaluate(state.low.params, state.middle.params, keys.eval)
-    return (state.replace(s_e=s_e, eval_distance=dist, eval_return=ret),
-            {"success": s_e, "distance": dist, "return": ret, "unstable": unstable})
+    ev = _evaluate(p, state, clock.t, keys.eval)
+    kinds = {f"success_{k}": ev.by_kind[evaluate_lib.KINDS.index(k)]
+             for k in p.evaluator.kinds}
+    return (state.replace(s_e=ev.success, eval_distance=ev.distance, eval_return=ev.return_,
+                          eval_by_kind=ev.by_kind),
+            {"success": ev.success, "distance": ev.distance, "return": ev.return_,
+             "unstable": ev.unstable, **kinds})
 
   state, m = gated(ran, evaluation, state)
   return state, level("eval", m, ran)
+
+
+def _evaluate(p: _Parts, state: SeedState, t, key) -> evaluate_lib.Evaluation:
+  """The seed's evaluation (``evaluate.py``) at global step ``t`` (the Middle PPO's std)."""
+  ppo = {"params": p.middle.explorer.params(state.middle_ppo), "t": t}
+  return p.evaluator(state.low.params, state.middle.params, ppo, key)
 
 
 def _step(p: _Parts, state: SeedState, t, hp: Numbers):
@@ -362,9 +402,12 @@ def make_agent(env, config: AgentConfig = AgentConfig()) -> Agent:
                  config.low_updates, config.low_done_goal)
   middle = make_middle(env.observation_size, env.action_size, target, config, low.td3.act)
   chooser = modes.make_chooser(config, env.observation_size, target, middle.value)
-  evaluate = evaluate_lib.make_evaluate(env, config.c, low.td3.act, middle.policy,
-                                        config.eval_episodes, config.eval_target_networks)
-  p = _Parts(config=config, env=env, low=low, middle=middle, chooser=chooser, evaluate=evaluate)
+  evaluator = evaluate_lib.make_evaluate(
+      env, config.c, low.td3.act, middle.policy, config.eval_episodes,
+      config.eval_target_networks, config.eval_goal, config.eval_all,
+      middle.ppo_goal if middle.explorer.trains else None)
+  p = _Parts(config=config, env=env, low=low, middle=middle, chooser=chooser,
+             evaluator=evaluator)
   return Agent(config=config, env=env, low=low, middle=middle, chooser=chooser,
                init=lambda key: _init(p, key), step=lambda state, t, hp: _step(p, state, t, hp),
-               evaluate=evaluate)
+               evaluate=lambda state, t, key: _evaluate(p, state, t, key))

@@ -41,6 +41,14 @@ SCORED_STATES = ("next", "current")  # training's task reward and success: on s'
 EPISODE_STARTS = ("reset", "last")  # an episode's first goal and mode: from the reset state
 #                                      or from the last state before the reset
 MIDDLE_TD3_INPUTS = ("state_target", "state")  # the Middle TD3 actor's input (critic: + goal)
+# The Middle TD3's s_0 in an episode's first segment under episode_start="last": the last state
+# before the reset (where the goal was chosen) or the reset state (the code: its sequence is
+# cleared at the reset; the Middle PPO and the Top keep the last state)
+FIRST_SEGMENT_STATES = ("last", "reset")
+WARMUP_GOALS = ("uniform", "gaussian")  # warm-up goals: U(+-range) or the code's clip(randn*range)
+# Which evaluation gives S_E (the Top's loss reads it; evaluate.py): the Middle TD3's goal held
+# c steps with the goal transition, or the code's Middle TD3 re-queried at every env step
+EVAL_GOALS = ("held", "requery")
 
 
 def _check_triple(name, values, lo=None, hi=None):
@@ -105,6 +113,12 @@ class AgentConfig:
   scored_state: str = "next"  # SCORED_STATES; the code: "current" (evaluation scores s' always)
   episode_start: str = "reset"  # EPISODE_STARTS; the code: "last"
   middle_td3_input: str = "state_target"  # MIDDLE_TD3_INPUTS; the code: "state"
+  middle_td3_first_state: str = "last"  # FIRST_SEGMENT_STATES; the code: "reset"
+  warmup_goal: str = "uniform"  # WARMUP_GOALS; the code: "gaussian" (RANDOM: random_goal)
+  eval_goal: str = "held"  # EVAL_GOALS; the code: "requery"
+  # also run the other evaluations each time, for their columns only: the Middle TD3 held and
+  # re-queried, and the Middle PPO re-queried (the code's 'higher success rate'), where it exists
+  eval_all: bool = False
   # PPO returns (Top and Middle PPO) also end at an episode's end (False) or only at their own
   # terminals, done_m and success (True, the code's: a return may run into the next episode)
   returns_cross_episodes: bool = False
@@ -131,7 +145,9 @@ class AgentConfig:
                           ("random_goal", RANDOM_GOALS), ("middle_relabel", RELABELS),
                           ("middle_ppo_sample", PPO_SAMPLES), ("low_done_goal", LOW_DONE_GOALS),
                           ("scored_state", SCORED_STATES), ("episode_start", EPISODE_STARTS),
-                          ("middle_td3_input", MIDDLE_TD3_INPUTS)):
+                          ("middle_td3_input", MIDDLE_TD3_INPUTS),
+                          ("middle_td3_first_state", FIRST_SEGMENT_STATES),
+                          ("warmup_goal", WARMUP_GOALS), ("eval_goal", EVAL_GOALS)):
       if getattr(self, name) not in allowed:
         raise ValueError(f"{name} must be one of {', '.join(allowed)}; "
                          f"got {getattr(self, name)!r}")

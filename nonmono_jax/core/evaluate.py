@@ -1,54 +1,103 @@
-"""Evaluation of Middle TD3 + Low TD3 without exploration noise: the success rate S_E.
+"""Evaluation without exploration noise: the success rate S_E, in one of three kinds.
 
-Each episode starts from a reset, the Middle TD3 picks a goal every c steps and the Low TD3
-follows it with the goal transition in between (as in training; the paper's code re-queries
-the Middle every step, docs/fidelity.md). An episode succeeds if the robot comes within the
-task's success radius at any step. As in the paper's code, the policies are the *target*
-actors by default (``target_networks``; S_E feeds the Top's loss). Episodes run vmapped inside one ``lax.scan``;
-``make_episode`` is the episode itself, with a record of every step (also drawn by
-``experiments/render.py``).
+    held     the Middle TD3 picks a goal every c steps and the Low follows it with the goal
+             transition in between, as the agent acts in training (ours' first reading)
+    requery  the paper's code (``hiro.evaluate``, its 'success rate', the S_E its Top loss
+             reads and its figures plot): the first goal is N(0, I) (its ``randn(3)``), then
+             after every env step the Middle TD3 gives a new goal from the new state; no goal
+             transition
+    ppo      the code's 'higher success rate' (``evaluate_higher_policy``): the same with the
+             Middle PPO's sampled goal (clipped to the goal range) at every step
+
+An episode succeeds if the robot comes within the task's success radius after any step. The
+code stops an episode at its first success; ours runs every episode to its end, so its final
+distance is read where the code's would stop (``requery``, ``ppo``) or at the end (``held``).
+As in the paper's code, the TD3 policies are the *target* actors by default
+(``target_networks``). Episodes run vmapped inside one ``lax.scan``; ``make_episode`` is the
+episode itself, with a record of every step (also drawn by ``experiments/render.py``). The
+evaluations of one call start from the same reset states (the same keys), kind by kind.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Callable
 
 import jax
 import jax.numpy as jp
+from flax import struct
 
 from envs import rollout
 from nonmono_jax.core import hierarchy
 
+KINDS = ("held", "requery", "ppo")  # the order of ``Evaluation.by_kind``
 
-def make_episode(env, c: int, low_act: Callable, middle_act: Callable) -> Callable:
-  """``episode(low_params, middle_params, key) -> (reset state, per-step records)``.
 
-  ``low_act(params, obs, goal)`` and ``middle_act(params, obs)`` are the noiseless TD3
-  policies (the Middle's towards the env's target: ``middle.Middle.policy``). Record t (of
-  ``env.episode_length``): after step t the robot's ``pos``,
-  ``success``, ``distance``, ``reward``, the ``blocks``' centres and whether the physics went
-  ``unstable``, and the world point ``goal`` = s[:3] + g that the Low was sent to during step t.
+@struct.dataclass
+class Evaluation:
+  """One evaluation of a seed: S_E of the run's kind and the other kinds' S_E."""
+
+  success: jax.Array  # S_E of the run's kind (``eval_goal``): what the Top's loss reads
+  distance: jax.Array  # its mean final distance to the target
+  return_: jax.Array  # its mean return (up to where the final distance is read)
+  unstable: jax.Array  # env steps whose physics went unstable in it (0 normally)
+  by_kind: jax.Array  # (3,) S_E of each kind in KINDS; 0 for a kind not run
+
+
+def make_episode(env, c: int, low_act: Callable, goal_act: Callable,
+                 kind: str = "held") -> Callable:
+  """``episode(low_params, goal_params, key) -> (reset state, per-step records)``.
+
+  ``low_act(params, obs, goal)`` is the noiseless Low; ``goal_act(params, obs, key)`` the
+  Middle sub-policy that gives goals (the noiseless Middle TD3 towards the env's target for
+  ``held`` and ``requery``, the Middle PPO's sample for ``ppo``). Record t (of
+  ``env.episode_length``): after step t the robot's ``pos``, ``success``, ``distance``,
+  ``reward``, the ``blocks``' centres and whether the physics went ``unstable``, and the
+  world point ``goal`` = s[:3] + g that the Low was sent to during step t. The reset uses
+  ``key`` itself, so every kind starts from the same state for one key.
   """
-  def episode(low_params, middle_params, key):
-    s0 = env.reset(key)
+  if kind not in KINDS:
+    raise ValueError(f"kind must be one of {', '.join(KINDS)}, got {kind!r}")
 
-    def act(g, s, t):
+  def episode(low_params, goal_params, key):
+    s0 = env.reset(key)
+    step_keys = jax.random.split(jax.random.fold_in(key, 2), env.episode_length)
+
+    def act(g, s, x):
       return low_act(low_params, s.obs, g)
 
-    def observe(g, s, s2, t):
-      """The goal transition, or the Middle's next goal every c steps; the step's record."""
-      g2 = hierarchy.goal_transition(s.obs, g, s2.obs)
-      g2 = jp.where((t + 1) % c == 0, middle_act(middle_params, s2.obs), g2)
+    def observe(g, s, s2, x):
+      t, k = x
+      if kind == "held":  # the goal transition; the Middle's next goal every c steps
+        g2 = hierarchy.goal_transition(s.obs, g, s2.obs)
+        g2 = jp.where((t + 1) % c == 0, goal_act(goal_params, s2.obs, k), g2)
+      else:  # a new goal after every step
+        g2 = goal_act(goal_params, s2.obs, k)
       record = {"pos": s2.obs[:hierarchy.GOAL_SIZE], "goal": s.obs[:hierarchy.GOAL_SIZE] + g,
                 "success": s2.success, "distance": s2.distance, "reward": s2.reward,
                 "blocks": env.block_positions(s2), "unstable": env.unstable(s2)}
       return g2, record
 
-    _, records = rollout.unroll(env, s0, act, jp.arange(env.episode_length),
-                                middle_act(middle_params, s0.obs), observe)
+    first = (goal_act(goal_params, s0.obs, jax.random.fold_in(key, 1)) if kind == "held"
+             else jax.random.normal(jax.random.fold_in(key, 1), (hierarchy.GOAL_SIZE,)))
+    _, records = rollout.unroll(env, s0, act, (jp.arange(env.episode_length), step_keys),
+                                first, observe)
     return s0, records
 
   return episode
+
+
+def outcome(records, kind: str):
+  """(success, final distance, return, unstable steps) of one episode's records: the final
+  distance where the code's episode would stop (its first success) for ``requery`` and
+  ``ppo``, at the episode's end for ``held``."""
+  success, unstable = records["success"].max(), records["unstable"].sum()
+  if kind == "held":
+    return success, records["distance"][-1], records["reward"].sum(), unstable
+  n = records["success"].shape[0]
+  last = jp.where(success > 0, jp.argmax(records["success"] > 0), n - 1)
+  return (success, records["distance"][last],
+          jp.where(jp.arange(n) <= last, records["reward"], 0.0).sum(), unstable)
 
 
 def acting_params(params, target_networks: bool):
@@ -56,25 +105,51 @@ def acting_params(params, target_networks: bool):
   return params.replace(actor=params.target_actor) if target_networks else params
 
 
-def make_evaluate(env, c: int, low_act: Callable, middle_act: Callable,
-                  episodes: int, target_networks: bool = True) -> Callable:
-  """``evaluate(low_params, middle_params, key) -> (S_E, mean final distance, mean return,
-  unstable steps)``; the last counts the env steps whose physics went unstable (0 normally).
+@dataclasses.dataclass(frozen=True)
+class Evaluator:
+  """``evaluate(low_params, middle_params, ppo_params, key) -> Evaluation`` (``make_evaluate``).
 
-  ``low_params`` / ``middle_params`` are the levels' ``TD3Params``; their target actors act
-  where ``target_networks`` (the paper's code), else the online actors.
+  ``kinds``: the kinds it runs, the run's own (``main``) first.
   """
-  episode = make_episode(env, c, low_act, middle_act)
 
-  def evaluate(low_params, middle_params, key):
+  kinds: tuple[str, ...]
+  evaluate: Callable[..., Evaluation]
+
+  def __call__(self, low_params, middle_params, ppo_params, key) -> Evaluation:
+    return self.evaluate(low_params, middle_params, ppo_params, key)
+
+
+def make_evaluate(env, c: int, low_act: Callable, middle_act: Callable, episodes: int,
+                  target_networks: bool = True, main: str = "held", every_kind: bool = False,
+                  ppo_act: Callable | None = None) -> Evaluator:
+  """The evaluation of a seed: ``episodes`` episodes of ``main`` (its S_E is the run's), and
+  with ``every_kind`` also the other kinds (``ppo`` only where ``ppo_act`` is given).
+
+  ``middle_act(params, obs)`` is the noiseless Middle TD3, ``ppo_act(params, obs, key)`` the
+  Middle PPO's clipped sample; ``low_params`` / ``middle_params`` are the levels'
+  ``TD3Params``, whose target actors act where ``target_networks`` (the paper's code). The
+  main kind's episodes take ``jax.random.split(key, episodes)``; another kind's the same keys
+  (the same start states), so one call compares the kinds on one set of starts.
+  """
+  td3_act = lambda params, obs, key: middle_act(params, obs)
+  kinds = (main,) + tuple(k for k in KINDS if every_kind and k != main
+                          and (k != "ppo" or ppo_act is not None))
+  runs = {k: make_episode(env, c, low_act, ppo_act if k == "ppo" else td3_act, k)
+          for k in kinds}
+
+  def evaluate(low_params, middle_params, ppo_params, key):
     low_params = acting_params(low_params, target_networks)
     middle_params = acting_params(middle_params, target_networks)
+    keys = jax.random.split(key, episodes)
+    results = {}
+    for k in kinds:
+      params = ppo_params if k == "ppo" else middle_params
+      one = lambda kk, k=k, params=params: outcome(runs[k](low_params, params, kk)[1], k)
+      success, distance, ret, unstable = jax.vmap(one)(keys)
+      results[k] = (success.mean(), distance.mean(), ret.mean(), unstable.sum())
+    success, distance, ret, unstable = results[main]
+    by_kind = jp.stack([results[k][0] if k in results else jp.zeros(()) for k in KINDS])
+    return Evaluation(success=success, distance=distance, return_=ret, unstable=unstable,
+                      by_kind=by_kind)
 
-    def one(key):
-      _, r = episode(low_params, middle_params, key)
-      return r["success"].max(), r["distance"][-1], r["reward"].sum(), r["unstable"].sum()
-
-    success, distance, ret, unstable = jax.vmap(one)(jax.random.split(key, episodes))
-    return success.mean(), distance.mean(), ret.mean(), unstable.sum()
-
-  return evaluate
+  return Evaluator(kinds=kinds, evaluate=evaluate)

@@ -156,9 +156,10 @@ class Middle:
   context: jax.Array  # what the Middle TD3 sees besides s: the target, or (0,) (paper's code)
   low_act: Callable[..., jax.Array]  # the Low's noiseless actor (params, obs, goal) -> a
 
-  def random_goal(self, key) -> jax.Array:
+  def random_goal(self, key, kind: str) -> jax.Array:
+    """A goal U(+-range) (``kind="uniform"``) or clip(N(0, 1) * range) (``"gaussian"``)."""
     k, r = hierarchy.GOAL_SIZE, self.goal_range
-    if self.config.random_goal == "uniform":
+    if kind == "uniform":
       return jax.random.uniform(key, (k,), minval=-r, maxval=r)
     return jp.clip(jax.random.normal(key, (k,)) * r, -r, r)
 
@@ -167,17 +168,19 @@ class Middle:
     """(goal, PPO action to store, its log pi_PPO) from the sub-policy ``mode``; ``noise``
     the std on TD3 goals (the lane's ``middle_goal_noise``).
 
-    Random goals in warm-up. The stored PPO action is PPO's own sample ("own", the paper's
-    code) or the executed goal ("executed").
+    Random goals in warm-up (``warmup_goal``; the RANDOM mode's are ``random_goal``). The
+    stored PPO action is PPO's own sample ("own", the paper's code) or the executed goal
+    ("executed").
     """
     k1, k2, k3 = jax.random.split(key, 3)
-    g_random = self.random_goal(k1)
+    g_random = self.random_goal(k1, self.config.random_goal)
+    g_warm = self.random_goal(k1, self.config.warmup_goal)
     g_td3 = self.td3.explore(td3_params, obs, self.context, k2, noise)
     ppo_obs = jp.concatenate([obs, self.target])
     proposal = self.explorer.propose(ppo_params, ppo_obs, k3, t)
     g_ppo = jp.clip(proposal[0], -self.goal_range, self.goal_range)
-    g = jp.select([warm | (mode == hierarchy.RANDOM), mode == hierarchy.PPO],
-                  [g_random, g_ppo], g_td3)
+    g = jp.select([warm, mode == hierarchy.RANDOM, mode == hierarchy.PPO],
+                  [g_warm, g_random, g_ppo], g_td3)
     return (g, *self.explorer.stored(ppo_params, ppo_obs, g, proposal, t))
 
   def new_segment(self, obs, g, ppo_action, log_prob) -> Segment:
@@ -202,25 +205,31 @@ class Middle:
                                          obs, g)
     return relabel.relabel(key, policy, seg.obs, seg.actions, seg.goal, self.goal_range)[0]
 
-  def pack(self, seg: Segment, g, episode_end) -> tuple[dict, ppo.Rollout]:
-    """The Middle TD3 buffer item (goal ``g``) and the Middle PPO rollout step of a segment."""
+  def pack(self, seg: Segment, g, episode_end, start=None) -> tuple[dict, ppo.Rollout]:
+    """The Middle TD3 buffer item (goal ``g``) and the Middle PPO rollout step of a segment.
+    ``start``: the Middle TD3's s_0 where it is not the decision state ``seg.obs[0]`` (the
+    reset state of an episode's first segment, ``middle_td3_first_state="reset"``); the PPO
+    step keeps ``seg.obs[0]``."""
     c, context = self.config.c, self.context
     reward = hierarchy.middle_reward(seg.rewards)
-    tr = td3.Transition(obs=seg.obs[0], context=context, action=g, reward=reward,
+    states = seg.obs if start is None else seg.obs.at[0].set(start)
+    tr = td3.Transition(obs=states[0], context=context, action=g, reward=reward,
                         next_obs=seg.obs[c], next_context=context, done=seg.success)
     item = ({"transition": tr} if self.relabels_at_store else
-            {"transition": tr, "states": seg.obs, "actions": seg.actions})
+            {"transition": tr, "states": states, "actions": seg.actions})
     ends_returns = 0.0 if self.config.returns_cross_episodes else 1.0
     done = jp.maximum(seg.success, ends_returns * jp.asarray(episode_end, jp.float32))
     step = ppo.Rollout(obs=jp.concatenate([seg.obs[0], self.target]), action=seg.ppo_action,
                        log_prob=seg.log_prob, reward=reward, done=done)
     return item, step
 
-  def close(self, seg: Segment, episode_end, low_params: td3.TD3Params,
-            key) -> tuple[dict, ppo.Rollout]:
-    """The segment's buffer item, its goal relabelled at store (``"store"``), and PPO step."""
-    g = self.relabelled(seg, low_params, key) if self.relabels_at_store else seg.goal
-    return self.pack(seg, g, episode_end)
+  def close(self, seg: Segment, episode_end, low_params: td3.TD3Params, key,
+            start=None) -> tuple[dict, ppo.Rollout]:
+    """The segment's buffer item, its goal relabelled at store (``"store"``), and PPO step;
+    ``start`` is the Middle TD3's s_0 where it is not ``seg.obs[0]`` (``pack``)."""
+    td3_seg = seg if start is None else seg.replace(obs=seg.obs.at[0].set(start))
+    g = self.relabelled(td3_seg, low_params, key) if self.relabels_at_store else seg.goal
+    return self.pack(seg, g, episode_end, start)
 
   def _example_segment(self):
     vec = lambda n: jax.ShapeDtypeStruct((n,), jp.float32)
@@ -247,6 +256,13 @@ class Middle:
   def policy(self, td3_params: td3.TD3Params, obs) -> jax.Array:
     """The noiseless Middle TD3 goal at s (towards the target)."""
     return self.td3.act(td3_params, obs, self.context)
+
+  def ppo_goal(self, ppo, obs, key) -> jax.Array:
+    """The Middle PPO's goal at s as the code evaluates it: a sample (std at step
+    ``ppo["t"]``, params ``ppo["params"]``) clipped to the goal range."""
+    proposal = self.explorer.propose(ppo["params"], jp.concatenate([obs, self.target]), key,
+                                     ppo["t"])
+    return jp.clip(proposal[0], -self.goal_range, self.goal_range)
 
   def value(self, td3_params: td3.TD3Params, obs) -> jax.Array:
     """V(s) = min(Q1', Q2')(s, target, pi'_M(s, target)) with the target networks."""

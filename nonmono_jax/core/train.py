@@ -4,7 +4,7 @@
     states = trainer.init(key)                      # one SeedState per seed (vmapped)
     for t0 in range(0, total, trainer.chunk_steps):  # Python: progress, logs, checkpoints
       states, metrics = trainer.chunk(states, t0)   # lax.scan over steps, vmap over seeds
-    s_e, dist, ret, unstable = trainer.evaluate(states, key)  # per seed, off the schedule
+    ev = trainer.evaluate(states, key, t)  # per seed, off the schedule: an Evaluation
 
 Inside a chunk the global step ``t`` is the scan's input and is not batched over seeds, so
 every horizon gate in ``agent.step`` stays a real branch (docs/spec.md, section 6).
@@ -125,6 +125,11 @@ def make_group_trainer(env, configs: Sequence[agent_lib.AgentConfig], num_seeds:
                variants=len(configs))
 
 
+def _with_step(evaluate):
+  """``evaluate(states, key, t=0)``: ``t`` only sets the Middle PPO's std (the ``ppo`` kind)."""
+  return lambda states, key, t=0: evaluate(states, key, jp.asarray(t, jp.int32))
+
+
 def _make(env, config, per_lane, num_seeds, chunk_steps, devices, compiler_options,
           variants) -> Trainer:
   """The trainer of ``variants`` x ``num_seeds`` lanes, lane i reading ``per_lane``[i]."""
@@ -145,9 +150,8 @@ def _make(env, config, per_lane, num_seeds, chunk_steps, devices, compiler_optio
     states, metrics = jax.lax.scan(body, states, t0 + jp.arange(chunk_steps))
     return states, reduce_chunk(metrics)
 
-  def local_evaluate(states, key):
-    return jax.vmap(agent.evaluate, in_axes=(0, 0, None))(
-        states.low.params, states.middle.params, key)
+  def local_evaluate(states, key, t):
+    return jax.vmap(agent.evaluate, in_axes=(0, None, None))(states, t, key)
 
   shard = lambda f, in_specs: jax.shard_map(f, mesh=mesh, in_specs=in_specs,
                                              out_specs=P("seeds"), check_vma=False)
@@ -180,5 +184,6 @@ def _make(env, config, per_lane, num_seeds, chunk_steps, devices, compiler_optio
   return Trainer(
       agent=agent, num_seeds=num_seeds, chunk_steps=chunk_steps, mesh=mesh,
       init=init, chunk=chunk,
-      evaluate=jit(shard(local_evaluate, (P("seeds"), P()))), variants=variants,
+      evaluate=_with_step(jit(shard(local_evaluate, (P("seeds"), P(), P())))),
+      variants=variants,
       chunk_program=lanes_chunk, hp=hp, program_bytes=program_bytes)

@@ -34,10 +34,12 @@ import orbax.checkpoint as ocp
 from flax import struct
 
 from nonmono_jax.core import hierarchy
+from nonmono_jax.core.evaluate import KINDS as EVAL_KINDS
 from nonmono_jax.host import processes
 
 LOSSES = ("low/critic_loss", "low/actor_loss", "middle/critic_loss", "middle/actor_loss",
           "middle_ppo/loss", "top/loss")
+LOW_COLUMNS = ("low_reward", "low_subgoal_distance", "low_subgoal_reached")
 COLUMNS = (
     ("task", "method", "seed", "env_step", "eval_success", "eval_distance", "eval_return",
      "train_reward", "train_return", "train_success", "train_distance")
@@ -50,7 +52,11 @@ COLUMNS = (
     + tuple(f"cum_steps_after_start_{m}" for m in hierarchy.MODES)
     + tuple(f"cum_decisions_after_start_{m}" for m in hierarchy.MODES)
     + tuple(f"p_{m}" for m in hierarchy.MODES)
-    + tuple(name.replace("/", "_") for name in LOSSES))
+    + tuple(name.replace("/", "_") for name in LOSSES)
+    # S_E of each evaluation kind (evaluate.KINDS), where the run evaluates it
+    + tuple(f"eval_success_{kind}" for kind in EVAL_KINDS)
+    # the Low: mean reward per env step; at segment ends, ||g_c|| and whether it was <= 1.5
+    + LOW_COLUMNS)
 
 
 def to_jsonable(obj: Any) -> Any:
@@ -96,6 +102,7 @@ class RowCounters:
   s_e: Any
   eval_distance: Any
   eval_return: Any
+  eval_by_kind: Any
 
   @classmethod
   def of(cls, states) -> "RowCounters":
@@ -137,6 +144,12 @@ def chunk_rows(task: str, method: str, env_step: int, states, metrics: dict,
       level = name.split("/")[0]
       ran = name in m and m[f"{level}/updated"][seed] > 0
       row[name.replace("/", "_")] = m[name][seed] if ran else ""
+    kinds = np.asarray(states.eval_by_kind)
+    for j, kind in enumerate(EVAL_KINDS):
+      run = evaluated and f"eval/success_{kind}" in m
+      row[f"eval_success_{kind}"] = kinds[seed, j] if run else ""
+    for column in LOW_COLUMNS:
+      row[column] = m[column.replace("_", "/", 1)][seed]
     rows.append({k: (float(v) if isinstance(v, np.floating) else
                      int(v) if isinstance(v, np.integer) else v) for k, v in row.items()})
   return rows
@@ -258,7 +271,8 @@ def _well_formed(line: str, n: int) -> bool:
 
 
 def _empty(x):
-  """A zero-size leaf as an array: the template's own, or zeros for an abstract one."""
+  """A leaf the checkpoint does not hold (zero-size, or added since) as an array: the
+  template's own, or zeros for an abstract one."""
   if isinstance(x, jax.ShapeDtypeStruct):
     sharding = getattr(x, "sharding", None)
     zeros = jp.zeros(x.shape, x.dtype)
@@ -301,12 +315,23 @@ class Checkpoints:
     self.manager.wait_until_finished()
 
   def restore(self, step: int, like):
-    """The state saved at ``step``, shaped and placed like ``like`` (arrays or abstract)."""
+    """The state saved at ``step``, shaped and placed like ``like`` (arrays or abstract).
+
+    A checkpoint written before the state gained its last fields holds fewer leaves: the
+    missing ones come from ``like`` (zeros where it is abstract), then the state's own
+    ``filled(saved_leaves)``, if it has one, gives them the values that keep the run what it
+    was (``agent.SeedState.filled``)."""
     leaves, treedef = jax.tree.flatten(like)
+    saved = set(self.manager.item_metadata(step).keys())
     abstract = {k: jax.ShapeDtypeStruct(x.shape, x.dtype, sharding=getattr(x, "sharding", None))
-                for k, x in self._stored(leaves).items()}
+                for k, x in self._stored(leaves).items() if k in saved}
     got = self.manager.restore(step, args=ocp.args.StandardRestore(abstract))
-    return jax.tree.unflatten(treedef, [got.get(str(i), _empty(x)) for i, x in enumerate(leaves)])
+    state = jax.tree.unflatten(treedef, [got.get(str(i), _empty(x))
+                                         for i, x in enumerate(leaves)])
+    n_saved = max((int(k) for k in saved), default=-1) + 1
+    if n_saved < len(leaves) and hasattr(state, "filled"):
+      state = state.filled(n_saved)
+    return state
 
   def restore_newest(self, like, log=print, move_aside: bool = True):
     """(step, state) of the newest checkpoint that restores, or (None, ``like``) if there is

@@ -422,7 +422,7 @@ def _saved_config(payload, name: str, spec, overrides: dict, widen: dict):
   except ValueError as e:
     today, notes = None, [f"cannot be rebuilt from today's presets ({e}); config.json is used"]
   try:
-    config = config_from_dict(saved, today or AgentConfig())
+    config = config_from_dict(saved, _earlier_behaviour(saved, today))
   except ValueError as e:
     raise ValueError(f"configs.{name}: {e}") from None
   if today is None:
@@ -430,13 +430,25 @@ def _saved_config(payload, name: str, spec, overrides: dict, widen: dict):
   notes = []
   missing = missing_fields(saved, today)
   if missing:
-    notes.append(f"has no {', '.join(missing)} (newer fields): today's preset values are used")
+    notes.append(f"has no {', '.join(missing)} (newer fields): their defaults, the behaviour "
+                 f"before they were added, are used")
   changed = [p for p in differences(config, today) if p not in missing]
   if changed:
     shown = "; ".join(f"{p} {get(config, p)!r} (today {get(today, p)!r})" for p in changed)
     notes.append(f"differs from today's {payload['preset']} preset with its overrides: {shown}; "
                  f"the run keeps its config.json")
   return config, notes
+
+
+def _earlier_behaviour(saved, today: AgentConfig | None) -> AgentConfig:
+  """The base a saved config is read over: today's preset, with every field the saved one
+  lacks (added to the code since) at its ``AgentConfig()`` default, which is the behaviour
+  before the field existed (a new option keeps the earlier behaviour as its default; the
+  presets may take the new one), so that an old run resumes and reproduces as it ran."""
+  if today is None:
+    return AgentConfig()
+  default = AgentConfig()
+  return override(today, {p: get(default, p) for p in missing_fields(saved, today)})
 
 
 def _check_payload(payload) -> None:
