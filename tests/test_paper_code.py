@@ -14,7 +14,7 @@ import pytest
 import envs
 from nonmono_jax.core import agent as agent_lib
 from nonmono_jax.core import low as low_lib
-from nonmono_jax.core import middle as middle_lib, networks, numbers, ppo, td3
+from nonmono_jax.core import hierarchy, middle as middle_lib, networks, numbers, ppo, td3
 from nonmono_jax.core import top as top_lib
 from nonmono_jax.core.config import TopConfig
 from nonmono_jax.host import methods
@@ -24,7 +24,8 @@ SMALL = td3.TD3Config(hidden=(8,), batch_size=4, buffer_size=64)
 CODE = {"low.init": "torch", "middle.init": "torch", "middle_ppo.init": "torch",
         "top.ppo.init": "torch", "middle_ppo.decay_at_start": True, "low_done_goal": "current",
         "scored_state": "current", "episode_start": "last", "middle_td3_input": "state",
-        "returns_cross_episodes": True}
+        "returns_cross_episodes": True, "middle_td3_first_state": "reset",
+        "warmup_goal": "gaussian", "eval_goal": "requery", "eval_all": True}
 
 
 @pytest.mark.parametrize("method", methods.METHODS)
@@ -41,6 +42,8 @@ def test_ant_presets_take_the_codes_choices_and_point_presets_keep_ours(method):
           point.middle_td3_input, point.returns_cross_episodes,
           point.middle_ppo.decay_at_start) == ("lecun", "next", "next", "reset", "state_target",
                                                False, False)
+  assert (point.middle_td3_first_state, point.warmup_goal, point.eval_goal,
+          point.eval_all) == ("last", "uniform", "held", False)
 
 
 def test_torch_initialisation_is_uniform_in_one_over_sqrt_fan_in():
@@ -149,3 +152,65 @@ def test_training_scores_the_state_before_the_step_and_keeps_the_last_goal(code_
   np.testing.assert_array_equal(np.asarray(state.env.steps), 0)
   np.testing.assert_array_equal(np.asarray(state.segment.obs[:, 0]), s_last[None])
   assert not np.allclose(np.asarray(state.env.obs)[0, :3], s_last[:3])
+
+
+@pytest.fixture(scope="module")
+def first_state_agent():
+  """The code's choices at an episode's start, ours: the Middle PPO."""
+  env = envs.make("PointPush", episode_length=EPISODE)
+  small = {"hidden": (8,), "batch_size": 4, "buffer_size": 200}
+  config = methods.make_config("ours", "PointPush", {
+      "c": C, "warmup_steps": 10, "eval_every": 1000, "eval_episodes": 1, "top.horizon": 10,
+      "middle_ppo_every": C, "top.train_every": 20, "middle_ppo.hidden": (8,),
+      "top.ppo.hidden": (8,), **{f"low.{k}": v for k, v in small.items()},
+      **{f"middle.{k}": v for k, v in small.items()}, "episode_start": "last",
+      "middle_td3_first_state": "reset"})
+  agent = agent_lib.make_agent(env, config)
+  return agent, jax.jit(functools.partial(agent.step, hp=numbers.of(config)))
+
+
+def test_the_middle_td3_starts_an_episode_at_the_reset_state_and_the_ppo_at_the_last(
+    first_state_agent):
+  """The code clears the Middle TD3's state sequence at a reset: the first Middle TD3
+  transition of an episode starts at the reset state (t * 0.001 = 0 in the observation's last
+  entry), while the Middle PPO keeps the state where it chose (the old episode's last)."""
+  agent, step = first_state_agent
+  state = agent.init(jax.random.PRNGKey(0))
+  for t in range(EPISODE + C):
+    state, _ = step(state, t)
+  s_last = np.asarray(state.low_buffer.data.next_obs[EPISODE - 1])
+  first = jax.tree.map(lambda x: np.asarray(x[EPISODE // C]),
+                       state.middle_buffer.data["transition"])  # the new episode's first
+  assert first.obs[-1] == 0.0 and not np.allclose(first.obs, s_last)
+  np.testing.assert_allclose(first.obs, np.asarray(state.low_buffer.data.obs[EPISODE]))
+  slot = (EPISODE + C - 1) // C % agent.config.middle_rollout_length
+  ppo_obs = np.asarray(state.middle_ppo.rollout.obs[0, slot, :OBS])
+  np.testing.assert_allclose(ppo_obs, s_last)
+  before = jax.tree.map(lambda x: np.asarray(x[EPISODE // C - 1]),
+                        state.middle_buffer.data["transition"])  # the old episode's last
+  np.testing.assert_allclose(before.next_obs, s_last)
+
+
+@pytest.mark.parametrize("kind", ["uniform", "gaussian"])
+def test_warmup_goals_are_clipped_gaussians_in_the_code(kind):
+  """The code's warm-up goals are clip(randn * range): about 32 % of each coordinate sits on
+  the range's edge; uniform goals never do. The RANDOM mode keeps ``random_goal``."""
+  config = methods.make_config("ours", "PointPush", {"low": SMALL, "middle": SMALL,
+                                                     "middle_ppo.hidden": (8,),
+                                                     "warmup_goal": kind})
+  low = low_lib.make_low(OBS, ACT, 1.0, config.low)
+  mid = middle_lib.make_middle(OBS, ACT, jp.zeros(3), config, low.td3.act)
+  td3_params = mid.td3.init(jax.random.PRNGKey(0)).params
+  ppo_params = mid.explorer.ppo.init(jax.random.PRNGKey(1)).params
+  goals = jax.vmap(lambda k, warm: mid.goal(td3_params, ppo_params, jp.zeros(OBS),
+                                            hierarchy.RANDOM, k, warm, 0, 0.0)[0],
+                   in_axes=(0, None))
+  keys = jax.random.split(jax.random.PRNGKey(2), 4000)
+  warm, random = np.asarray(goals(keys, True)), np.asarray(goals(keys, False))
+  edge = lambda g: np.mean(np.isclose(np.abs(g[:, :2]), 4.0))
+  assert edge(random) == 0.0  # random_goal stays uniform
+  assert np.abs(warm[:, :2]).max() <= 4.0
+  if kind == "gaussian":
+    assert edge(warm) == pytest.approx(0.3173, abs=0.02)
+  else:
+    assert edge(warm) == 0.0
