@@ -10,6 +10,7 @@ import pytest
 from flax import struct
 
 from nonmono_jax.core import evaluate
+from nonmono_jax.core.evaluate import KINDS
 
 C, LENGTH, TARGET, RADIUS = 4, 12, np.array([3.0, 0.0, 0.0]), 1.0
 
@@ -123,7 +124,7 @@ def test_one_call_runs_each_kind_from_the_same_starts():
   ppo = lambda params, obs, key: jp.clip(TOWARDS(0.0, obs, None)
                                          + jax.random.normal(key, (3,)) * params, -2.0, 2.0)
   ev = evaluate.make_evaluate(ENV, C, LOW, lambda p, o: TOWARDS(p, o, None), 6,
-                              target_networks=False, main="requery", every_kind=True,
+                              target_networks=False, main="requery", extra=KINDS,
                               ppo_act=ppo)
   assert ev.kinds == ("requery", "held", "ppo")
 

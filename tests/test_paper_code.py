@@ -25,7 +25,8 @@ CODE = {"low.init": "torch", "middle.init": "torch", "middle_ppo.init": "torch",
         "top.ppo.init": "torch", "middle_ppo.decay_at_start": True, "low_done_goal": "current",
         "scored_state": "current", "episode_start": "last", "middle_td3_input": "state",
         "returns_cross_episodes": True, "middle_td3_first_state": "reset",
-        "warmup_goal": "gaussian", "eval_goal": "requery", "eval_all": True}
+        "warmup_goal": "gaussian", "eval_goal": "requery",
+        "eval_extra": ("held", "ppo")}
 
 
 @pytest.mark.parametrize("method", methods.METHODS)
@@ -43,7 +44,7 @@ def test_ant_presets_take_the_codes_choices_and_point_presets_keep_ours(method):
           point.middle_ppo.decay_at_start) == ("lecun", "next", "next", "reset", "state_target",
                                                False, False)
   assert (point.middle_td3_first_state, point.warmup_goal, point.eval_goal,
-          point.eval_all) == ("last", "uniform", "held", False)
+          point.eval_extra) == ("last", "uniform", "held", ())
 
 
 def test_torch_initialisation_is_uniform_in_one_over_sqrt_fan_in():

@@ -323,8 +323,8 @@ def test_fields_added_since_a_run_keep_the_behaviour_it_ran_with():
   the earlier behaviour (the fields' defaults), so it resumes and reproduces as it ran."""
   plan = plan_lib.load_run(os.path.join(ROOT, "results", "antpush", "ours"))
   config = plan.configs["ours"]
-  assert (config.eval_goal, config.eval_all, config.middle_td3_first_state,
-          config.warmup_goal) == ("held", False, "last", "uniform")
+  assert (config.eval_goal, config.eval_extra, config.middle_td3_first_state,
+          config.warmup_goal) == ("held", (), "last", "uniform")
   assert config.episode_start == "last"  # what it saved stays
   today = methods.make_config("ours", "AntPush")
   assert (today.eval_goal, today.middle_td3_first_state) == ("requery", "reset")

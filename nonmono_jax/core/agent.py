@@ -404,7 +404,7 @@ def make_agent(env, config: AgentConfig = AgentConfig()) -> Agent:
   chooser = modes.make_chooser(config, env.observation_size, target, middle.value)
   evaluator = evaluate_lib.make_evaluate(
       env, config.c, low.td3.act, middle.policy, config.eval_episodes,
-      config.eval_target_networks, config.eval_goal, config.eval_all,
+      config.eval_target_networks, config.eval_goal, config.eval_extra,
       middle.ppo_goal if middle.explorer.trains else None)
   p = _Parts(config=config, env=env, low=low, middle=middle, chooser=chooser,
              evaluator=evaluator)

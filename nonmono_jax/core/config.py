@@ -49,6 +49,7 @@ WARMUP_GOALS = ("uniform", "gaussian")  # warm-up goals: U(+-range) or the code'
 # Which evaluation gives S_E (the Top's loss reads it; evaluate.py): the Middle TD3's goal held
 # c steps with the goal transition, or the code's Middle TD3 re-queried at every env step
 EVAL_GOALS = ("held", "requery")
+EVAL_KINDS = EVAL_GOALS + ("ppo",)
 
 
 def _check_triple(name, values, lo=None, hi=None):
@@ -116,9 +117,9 @@ class AgentConfig:
   middle_td3_first_state: str = "last"  # FIRST_SEGMENT_STATES; the code: "reset"
   warmup_goal: str = "uniform"  # WARMUP_GOALS; the code: "gaussian" (RANDOM: random_goal)
   eval_goal: str = "held"  # EVAL_GOALS; the code: "requery"
-  # also run the other evaluations each time, for their columns only: the Middle TD3 held and
-  # re-queried, and the Middle PPO re-queried (the code's 'higher success rate'), where it exists
-  eval_all: bool = False
+  # evaluation kinds also run each time, for their columns only (EVAL_KINDS): "held", "requery",
+  # "ppo" (the Middle PPO re-queried, the code's 'higher success rate'; where it exists)
+  eval_extra: tuple[str, ...] = ()
   # PPO returns (Top and Middle PPO) also end at an episode's end (False) or only at their own
   # terminals, done_m and success (True, the code's: a return may run into the next episode)
   returns_cross_episodes: bool = False
@@ -141,6 +142,10 @@ class AgentConfig:
 
   def __post_init__(self):
     object.__setattr__(self, "goal_range", tuple(float(g) for g in self.goal_range))
+    object.__setattr__(self, "eval_extra", tuple(self.eval_extra))
+    bad = [k for k in self.eval_extra if k not in EVAL_KINDS]
+    if bad:
+      raise ValueError(f"eval_extra entries must be among {', '.join(EVAL_KINDS)}; got {bad[0]!r}")
     for name, allowed in (("switch", SWITCHES), ("explore_mode", EXPLORE_MODES),
                           ("random_goal", RANDOM_GOALS), ("middle_relabel", RELABELS),
                           ("middle_ppo_sample", PPO_SAMPLES), ("low_done_goal", LOW_DONE_GOALS),

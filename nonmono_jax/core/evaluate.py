@@ -29,8 +29,7 @@ from flax import struct
 
 from envs import rollout
 from nonmono_jax.core import hierarchy
-
-KINDS = ("held", "requery", "ppo")  # the order of ``Evaluation.by_kind``
+from nonmono_jax.core.config import EVAL_KINDS as KINDS  # the order of ``Evaluation.by_kind``
 
 
 @struct.dataclass
@@ -120,10 +119,10 @@ class Evaluator:
 
 
 def make_evaluate(env, c: int, low_act: Callable, middle_act: Callable, episodes: int,
-                  target_networks: bool = True, main: str = "held", every_kind: bool = False,
+                  target_networks: bool = True, main: str = "held", extra=(),
                   ppo_act: Callable | None = None) -> Evaluator:
   """The evaluation of a seed: ``episodes`` episodes of ``main`` (its S_E is the run's), and
-  with ``every_kind`` also the other kinds (``ppo`` only where ``ppo_act`` is given).
+  of each kind in ``extra`` (``ppo`` only where ``ppo_act`` is given), for their S_E alone.
 
   ``middle_act(params, obs)`` is the noiseless Middle TD3, ``ppo_act(params, obs, key)`` the
   Middle PPO's clipped sample; ``low_params`` / ``middle_params`` are the levels'
@@ -132,7 +131,7 @@ def make_evaluate(env, c: int, low_act: Callable, middle_act: Callable, episodes
   (the same start states), so one call compares the kinds on one set of starts.
   """
   td3_act = lambda params, obs, key: middle_act(params, obs)
-  kinds = (main,) + tuple(k for k in KINDS if every_kind and k != main
+  kinds = (main,) + tuple(k for k in KINDS if k in extra and k != main
                           and (k != "ppo" or ppo_act is not None))
   runs = {k: make_episode(env, c, low_act, ppo_act if k == "ppo" else td3_act, k)
           for k in kinds}
