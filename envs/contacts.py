@@ -39,6 +39,7 @@ import mujoco
 import numpy as np
 
 CONTACTS = ("mujoco3", "mujoco2")
+DEFAULT = "mujoco3"  # AntConfig's and a new run's
 MUJOCO2_TOLERANCE = 1e-10
 _SLIDE_ONLY = 2  # mjModel.body_simple of a body moved by slide joints only (MuJoCo 3)
 
