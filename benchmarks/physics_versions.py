@@ -247,7 +247,8 @@ def settings() -> dict:
 
   return {"mujoco3": lambda model: None, "margins/2": contacts.halve_margins,
           "margins/2 + invweight": margins_and_invweight,
-          "mujoco2": lambda model: contacts.apply_contacts(model, "mujoco2")}
+          "mujoco2": lambda model: contacts.apply_contacts(model, "mujoco2"),
+          "mujoco200": lambda model: contacts.apply_contacts(model, "mujoco200")}
 
 
 def torso_errors(measured: dict, fixture: dict, task: str) -> np.ndarray:

@@ -14,7 +14,8 @@ unstable (MuJoCo's bad qpos/qvel/qacc warnings in C; a NaN or Inf in MJX).
 ``AntConfig.contacts`` picks the engine's contact settings (``envs.contacts``), applied to the
 compiled model before either physics is built on it: ``mujoco3`` (the default) as MuJoCo 3
 compiles HIRO's model; ``mujoco2``, the settings that make MuJoCo 3 move the ant and the
-blocks as MuJoCo 2.x does (``docs/environments.md``, "MuJoCo 2 and 3").
+blocks as MuJoCo 2.x does (measured against 2.3.7); ``mujoco200``, those and MuJoCo 2.0's
+capsule inertia, what the paper's code ran (``docs/environments.md``, "MuJoCo 2 and 3").
 """
 
 from __future__ import annotations
@@ -46,7 +47,8 @@ def default_physics() -> str:
 class AntConfig(base.EnvConfig):
   """Ant maze options. ``optimised=False`` builds HIRO's model literally (slow in MJX).
   ``physics``: ``c``, ``mjx`` or ``auto`` (resolved by the env, ``default_physics``).
-  ``contacts``: the engine's contact settings, ``mujoco3`` or ``mujoco2`` (``envs.contacts``)."""
+  ``contacts``: the engine's settings, ``mujoco3``, ``mujoco2`` or ``mujoco200``
+  (``envs.contacts``)."""
 
   physics: str = "auto"
   contacts: str = contacts_lib.DEFAULT

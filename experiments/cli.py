@@ -164,9 +164,10 @@ def make_parser(task: str) -> argparse.ArgumentParser:
                         "step (10-25x MJX on a CPU); mjx, the MJX pipeline (for accelerators); "
                         "auto: c on a CPU, mjx on an accelerator; --resume keeps the run's")
     p.add_argument("--contacts", default=None, choices=contacts_lib.CONTACTS,
-                   help="the ant's contact settings: mujoco3, MuJoCo 3's (default); mujoco2, "
-                        "those that make MuJoCo 3 move the ant and blocks as MuJoCo 2.x, which "
-                        "the paper's code ran (docs/environments.md); --resume keeps the run's")
+                   help="the ant's engine settings: mujoco3, MuJoCo 3's (default); mujoco2, "
+                        "those that make MuJoCo 3 move the ant and blocks as MuJoCo 2.x; "
+                        "mujoco200, those and MuJoCo 2.0's capsule inertia, what the paper's "
+                        "code ran (docs/environments.md); --resume keeps the run's")
   _add_process_flags(p)
   p.add_argument("--no-progress", action="store_true", help="no progress bar")
   p.add_argument("--tensorboard", action="store_true",

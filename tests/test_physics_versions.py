@@ -117,8 +117,9 @@ def test_mujoco2_is_the_model_compiled_with_half_the_margins():
 
 
 def test_apply_contacts_works_by_role_on_the_papers_names():
-  """The paper's maze_env.py names the Push block's body movable_2_2, its joints movable_x_2_2
-  and its walls block_i_j: the settings do not read names, so they land alike."""
+  """The paper's maze_env.py names the Push block's body movable_2_2 and its joints
+  movable_x_2_2 (and its walls otherwise): the settings do not read names, so they land alike
+  on the same model."""
   ours = pv.load("Push", "mujoco2")
   xml = (pv.literal_xml("Push").replace('body name="block_2_2"', 'body name="movable_2_2"')
          .replace('"block_x_2_2"', '"movable_x_2_2"').replace('"block_y_2_2"', '"movable_y_2_2"'))
@@ -160,3 +161,38 @@ def test_the_env_option_reaches_both_physics():
     assert float(env.sys.body_invweight0[block.id, 0]) == pytest.approx(block.invweight0[0])
   with pytest.raises(ValueError, match="contacts must be one of mujoco3, mujoco2"):
     envs.make("AntPush", contacts="2.0")
+
+
+def _inertia_tensors(model) -> np.ndarray:
+  rot = np.zeros((model.nbody, 9))
+  for b in range(model.nbody):
+    mujoco.mju_quat2Mat(rot[b], model.body_iquat[b])
+  rot = rot.reshape(-1, 3, 3)
+  return rot @ (model.body_inertia[:, :, None] * np.eye(3)) @ rot.transpose(0, 2, 1)
+
+
+def test_mujoco200_gives_the_capsules_mujoco_2_0_masses_and_inertias():
+  """MuJoCo 2.0 took a capsule for a cylinder of its middle section extended by half its radius
+  at both ends. Checks: the exact branch of the same code rebuilds MuJoCo 3's own inertias;
+  gym's Reacher-v2 link (capsule 0.1 x r 0.01, density 1000) weighs 0.03455752 under mujoco_py
+  2.0 (gym issue 2039); HIRO's ant weighs 0.879 instead of 0.911."""
+  model = pv.load("Push")
+  exact = pv.load("Push")
+  contacts.capsule_inertia(exact, legacy=False)
+  np.testing.assert_allclose(exact.body_mass, model.body_mass, rtol=1e-12)
+  np.testing.assert_allclose(_inertia_tensors(exact), _inertia_tensors(model), atol=1e-15)
+  reacher = mujoco.MjModel.from_xml_string(
+      '<mujoco><worldbody><body><joint type="hinge"/><geom type="capsule" size=".01" '
+      'fromto="0 0 0 0.1 0 0"/></body></worldbody></mujoco>')
+  contacts.capsule_inertia(reacher)
+  assert reacher.body_mass[1] == pytest.approx(0.03455752, abs=1e-8)
+  old = pv.load("Push", "mujoco200")
+  torso = old.body("torso").id
+  assert old.body_subtreemass[torso] == pytest.approx(0.87871, abs=1e-5)
+  assert model.body_subtreemass[torso] == pytest.approx(0.91088, abs=1e-5)
+  assert old.geom_margin.max() == 0.005 and old.opt.tolerance == contacts.MUJOCO2_TOLERANCE
+  block = old.body("block_2_2")
+  assert block.invweight0[0] == pytest.approx(2 / 3 / block.mass[0])  # after mj_setConst
+  # 1-2 mm lower at rest than MuJoCo 2.3's ant (no pip-installable 2.0 to check paths with)
+  dz = pv.rest(old)[-1, 2] - pv.rest(pv.load("Push", "mujoco2"))[-1, 2]
+  assert -0.002 < dz < -0.0005
