@@ -300,7 +300,7 @@ def test_the_ant_contacts_are_recorded_and_an_old_ant_run_keeps_mujoco3(tmp_path
   del payload["contacts"]  # a run folder from before the choice
   assert plan_lib.from_json(payload, plan.out).contacts == "mujoco3"
   payload["contacts"] = "mujoco1"
-  with pytest.raises(ValueError, match="contacts must be one of mujoco3, mujoco2, got 'mujoco1'"):
+  with pytest.raises(ValueError, match="contacts must be one of .*, got 'mujoco1'"):
     plan_lib.from_json(payload, plan.out)
   with pytest.raises(ValueError, match="--contacts: PointMaze has no contact settings"):
     plan_lib.new_run("PointMaze", ["hiro"], contacts="mujoco2")
