@@ -10,6 +10,12 @@ the jitted step (``envs.c_physics``, the state a ``CState``), 10-25x faster on a
 (the default) is ``c`` on a CPU backend and ``mjx`` on an accelerator. Both states have
 ``qpos`` and ``qvel``; ``unstable(state)`` is 1.0 after a step that made the simulation
 unstable (MuJoCo's bad qpos/qvel/qacc warnings in C; a NaN or Inf in MJX).
+
+``AntConfig.contacts`` picks the engine's contact settings (``envs.contacts``), applied to the
+compiled model before either physics is built on it: ``mujoco3`` (the default) as MuJoCo 3
+compiles HIRO's model; ``mujoco2``, the settings that make MuJoCo 3 move the ant and the
+blocks as MuJoCo 2.x does (measured against 2.3.7); ``mujoco200``, those and MuJoCo 2.0's
+capsule inertia, what the paper's code ran (``docs/environments.md``, "MuJoCo 2 and 3").
 """
 
 from __future__ import annotations
@@ -24,6 +30,7 @@ from brax.envs import base as brax_base
 from brax.io import mjcf
 
 from envs import ant, base, c_physics, maze, tasks
+from envs import contacts as contacts_lib
 
 N_FRAMES = 5
 OBS_SIZE = 30
@@ -39,9 +46,12 @@ def default_physics() -> str:
 @dataclasses.dataclass(frozen=True)
 class AntConfig(base.EnvConfig):
   """Ant maze options. ``optimised=False`` builds HIRO's model literally (slow in MJX).
-  ``physics``: ``c``, ``mjx`` or ``auto`` (resolved by the env, ``default_physics``)."""
+  ``physics``: ``c``, ``mjx`` or ``auto`` (resolved by the env, ``default_physics``).
+  ``contacts``: the engine's settings, ``mujoco3``, ``mujoco2`` or ``mujoco200``
+  (``envs.contacts``)."""
 
   physics: str = "auto"
+  contacts: str = contacts_lib.DEFAULT
   optimised: bool = True
   solver_iterations: int = ant.FAST_SOLVER.iterations
   solver_ls_iterations: int = ant.FAST_SOLVER.ls_iterations
@@ -52,6 +62,9 @@ class AntConfig(base.EnvConfig):
     super().__post_init__()
     if self.physics not in PHYSICS:
       raise ValueError(f"physics must be one of {', '.join(PHYSICS)}, got {self.physics!r}")
+    if self.contacts not in contacts_lib.CONTACTS:
+      raise ValueError(f"contacts must be one of {', '.join(contacts_lib.CONTACTS)}, "
+                       f"got {self.contacts!r}")
     for name in ("solver_iterations", "solver_ls_iterations"):
       if getattr(self, name) < 1:
         raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
@@ -77,6 +90,7 @@ class AntMazeEnv(base.MazeTask, brax_base.PipelineEnv):
     self.task = task
     self.layout = task.layout(8.0)
     self.mj_model = ant.load(self.layout, config.optimised, config.solver())
+    contacts_lib.apply_contacts(self.mj_model, config.contacts)
     self.target = jp.asarray(task.target, jp.float32)
     self.success_radius = task.success_radius
     with warnings.catch_warnings():  # brax's notice that its own pipelines are unmaintained

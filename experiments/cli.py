@@ -44,6 +44,7 @@ cores.share(sys.argv[1:])  # before JAX loads: this process's share of a machine
 
 import envs  # noqa: E402
 from envs import ant_maze  # noqa: E402
+from envs import contacts as contacts_lib  # noqa: E402
 from nonmono_jax.core import config as config_lib  # noqa: E402
 from nonmono_jax.host import io, methods, plan as plan_lib, processes, run, runlock, sinks  # noqa: E402
 from nonmono_jax.host import programs as programs_lib  # noqa: E402
@@ -162,6 +163,11 @@ def make_parser(task: str) -> argparse.ArgumentParser:
                    help="the ant's physics: c, MuJoCo's C engine called from inside the jitted "
                         "step (10-25x MJX on a CPU); mjx, the MJX pipeline (for accelerators); "
                         "auto: c on a CPU, mjx on an accelerator; --resume keeps the run's")
+    p.add_argument("--contacts", default=None, choices=contacts_lib.CONTACTS,
+                   help="the ant's engine settings: mujoco3, MuJoCo 3's (default); mujoco2, "
+                        "those that make MuJoCo 3 move the ant and blocks as MuJoCo 2.x; "
+                        "mujoco200, those and MuJoCo 2.0's capsule inertia, what the paper's "
+                        "code ran (docs/environments.md); --resume keeps the run's")
   _add_process_flags(p)
   p.add_argument("--no-progress", action="store_true", help="no progress bar")
   p.add_argument("--tensorboard", action="store_true",
@@ -193,7 +199,7 @@ def plan_from_args(task: str, args: argparse.Namespace) -> plan_lib.Plan:
       run={name: getattr(args, name, None) for name in plan_lib.RUN_FIELDS},
       envs_per_seed=getattr(args, "envs_per_seed", None),
       grad_steps=getattr(args, "grad_steps", None), sweep=parse_sweep(args.sweep),
-      physics=getattr(args, "physics", None))
+      physics=getattr(args, "physics", None), contacts=getattr(args, "contacts", None))
 
 
 def parse_sweep(given) -> dict:
@@ -334,6 +340,8 @@ def _run(plan: plan_lib.Plan, args: argparse.Namespace, programs=None) -> int:
       outputs.append(sinks.TensorBoard(plan.out))
     log = print
   physics = f", {plan.physics} physics" if plan.physics else ""
+  if plan.contacts not in (None, contacts_lib.DEFAULT):
+    physics += f", {plan.contacts} contacts"
   across = f", {processes.count()} processes" if processes.count() > 1 else ""
   log(f"{plan.task}: {', '.join(plan.configs)} x {plan.spec.seeds} seeds x {plan.spec.steps} "
       f"steps ({plan.preset}{physics}{across}) -> {plan.out}", flush=True)

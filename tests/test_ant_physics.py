@@ -45,8 +45,10 @@ def test_push_block_slides_in_x_and_y(build):
   d = mujoco.MjData(m)
   _simulate(m, d, 2.0)
   assert abs(d.qpos[bx]) < 0.05 and abs(d.qpos[by]) < 0.05
-  # A push of a few newtons is not enough: the floor contact holds it (HIRO's block has no
-  # z freedom, so the floor acts as a stiff brake; the ant's legs push with tens of newtons).
+  # A push of a few newtons in +x is not enough: the corner of the wall cell (1, 3), within
+  # contact margin of the block's side, holds it. (The floor, which the block cannot leave,
+  # brakes it like a damper with no threshold: pushed -x it slides at any force;
+  # docs/environments.md, "MuJoCo 2 and 3".)
   _simulate(m, d, 1.0, block_force=(1.0, 0, 0))
   assert abs(d.qpos[bx]) < 0.05
   # Pushed +x it slides into the free cell (2, 3) and stops at the wall beyond.

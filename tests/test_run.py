@@ -299,6 +299,31 @@ def test_the_ant_physics_is_recorded_and_an_old_ant_run_keeps_mjx(tmp_path):
     plan_lib.new_run("AntFall", ["hiro"], physics="C")
 
 
+def test_the_ant_contacts_are_recorded_and_an_old_ant_run_keeps_mujoco3(tmp_path):
+  """``--contacts`` (envs.contacts) reaches the run's env and config.json; a run folder from
+  before the choice ran on MuJoCo 3's contacts and resumes on them."""
+  plan = plan_lib.new_run("AntFall", ["hiro"], preset="quick", out=str(tmp_path / "a"))
+  assert plan.contacts == "mujoco3" and plan.env().config.contacts == "mujoco3"
+  two = plan_lib.new_run("AntFall", ["hiro"], preset="quick", contacts="mujoco2")
+  assert two.env().mj_model.geom_margin.max() == 0.005
+  payload = plan_lib.to_json(two)
+  assert payload["contacts"] == "mujoco2"
+  assert plan_lib.from_json(payload, plan.out).contacts == "mujoco2"
+  del payload["contacts"]  # a run folder from before the choice
+  assert plan_lib.from_json(payload, plan.out).contacts == "mujoco3"
+  payload["contacts"] = "mujoco1"
+  with pytest.raises(ValueError, match="contacts must be one of .*, got 'mujoco1'"):
+    plan_lib.from_json(payload, plan.out)
+  with pytest.raises(ValueError, match="--contacts: PointMaze has no contact settings"):
+    plan_lib.new_run("PointMaze", ["hiro"], contacts="mujoco2")
+  assert plan_lib.new_run("PointMaze", ["hiro"]).contacts is None
+  with pytest.raises(ValueError, match="--contacts must be one of mujoco3, mujoco2"):
+    plan_lib.new_run("AntFall", ["hiro"], contacts="2.0")
+  args = cli.make_parser("AntFall").parse_args(["--method", "hiro", "--contacts", "mujoco2"])
+  assert cli.plan_from_args("AntFall", args).contacts == "mujoco2"
+  assert "--contacts" not in cli.make_parser("PointFall").format_help()
+
+
 def test_the_task_registry_names_each_task_once():
   """methods.TASKS is the one list of tasks: each has its env, its presets, its experiment
   module (which reads its task from the registry) and its calibration floor."""

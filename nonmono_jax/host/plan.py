@@ -34,6 +34,7 @@ import jax
 
 import envs
 from envs import ant_maze
+from envs import contacts as contacts_lib
 from nonmono_jax.core import numbers, validation
 from nonmono_jax.core.config import AgentConfig, config_from_dict, differences, flatten, get
 from nonmono_jax.core.config import merge, missing_fields, override
@@ -63,10 +64,13 @@ class Plan:
   # the ant's physics ("c" or "mjx", envs.ant_maze); None for the point robot (pure JAX). Runs
   # from before the choice (config.json without "physics") ran on MJX and resume on it.
   physics: str | None = None
+  # the ant's contact settings ("mujoco3" or "mujoco2", envs.contacts); None for the point robot.
+  # Runs from before the choice (config.json without "contacts") ran on "mujoco3" and resume so.
+  contacts: str | None = None
 
   def env(self):
-    """The run's env: its task, episode length and physics."""
-    return make_env(self.task, self.spec.episode_length, self.physics)
+    """The run's env: its task, episode length, physics and contact settings."""
+    return make_env(self.task, self.spec.episode_length, self.physics, self.contacts)
 
   def groups(self) -> list[list[str]]:
     """The variants by program, in plan order: those with one static key share a trainer."""
@@ -83,15 +87,18 @@ class Plan:
 def new_run(task: str, method_names, preset: str = "paper", out: str | None = None,
             seed: int = 0, overrides: dict | None = None, run: dict | None = None,
             envs_per_seed: int | None = None, grad_steps: int | None = None,
-            sweep: dict | None = None, physics: str | None = None) -> Plan:
+            sweep: dict | None = None, physics: str | None = None,
+            contacts: str | None = None) -> Plan:
   """The checked plan of a new run: the presets of ``method_names`` on ``task``, widened
   (``methods.widen``), with the dotted ``overrides`` and the run size changes ``run``
   (``steps``, ``seeds``, ``chunk``, ``checkpoint_every``, ``episode_length``); replay buffers
   sized for the run unless an override gives a size. ``sweep`` (dotted path -> list of
   values; several paths: their grid) makes each method one variant per value. ``physics``:
-  the ant's, ``c``, ``mjx`` or ``auto`` (None: ``auto``). Raises ValueError naming the
+  the ant's, ``c``, ``mjx`` or ``auto`` (None: ``auto``); ``contacts``: the ant's contact
+  settings (``envs.contacts``; None: ``envs.contacts.DEFAULT``). Raises ValueError naming the
   field."""
   physics = run_physics(task, physics)
+  contacts = run_contacts(task, contacts)
   overrides = flatten(overrides or {})
   if grad_steps is not None and envs_per_seed is None:
     raise ValueError("--grad-steps needs --envs-per-seed")
@@ -116,7 +123,8 @@ def new_run(task: str, method_names, preset: str = "paper", out: str | None = No
     raise ValueError("--out must not be empty")
   return Plan(task=task, preset=preset, seed=seed, out=out, spec=spec, configs=configs,
               overrides=overrides, widen=widen,
-              variants={n: v for n, v in variants.items() if v["overrides"]}, physics=physics)
+              variants={n: v for n, v in variants.items() if v["overrides"]}, physics=physics,
+              contacts=contacts)
 
 
 def run_physics(task: str, physics: str | None) -> str | None:
@@ -131,9 +139,29 @@ def run_physics(task: str, physics: str | None) -> str | None:
   return ant_maze.default_physics() if physics in (None, "auto") else physics
 
 
-def make_env(task: str, episode_length: int, physics: str | None = None):
-  """``envs.make`` of a run's task: the ant with its ``physics`` (None: ``auto``)."""
+def run_contacts(task: str, contacts: str | None) -> str | None:
+  """The contact settings a new run of ``task`` records: for the ant ``contacts`` (None:
+  ``envs.contacts.DEFAULT``), None for the point robot, which has no choice."""
+  if not envs.has_physics(task):
+    if contacts is not None:
+      raise ValueError(f"--contacts: {task} has no contact settings (the point robot is pure "
+                       "JAX)")
+    return None
+  if contacts is None:
+    return contacts_lib.DEFAULT
+  if contacts not in contacts_lib.CONTACTS:
+    raise ValueError(f"--contacts must be one of {', '.join(contacts_lib.CONTACTS)}, got "
+                     f"{contacts!r}")
+  return contacts
+
+
+def make_env(task: str, episode_length: int, physics: str | None = None,
+             contacts: str | None = None):
+  """``envs.make`` of a run's task: the ant with its ``physics`` (None: ``auto``) and
+  ``contacts`` (None: the env's default)."""
   extra = {"physics": physics} if physics is not None else {}
+  if contacts is not None:
+    extra["contacts"] = contacts
   return envs.make(task, episode_length=episode_length, **extra)
 
 
@@ -264,7 +292,7 @@ def to_json(plan: Plan) -> dict:
           "overrides": io.to_jsonable(plan.overrides), "widen": plan.widen,
           "configs": {m: io.to_jsonable(c) for m, c in plan.configs.items()},
           "variants": io.to_jsonable(plan.variants), "grouped": plan.grouped,
-          "physics": plan.physics,
+          "physics": plan.physics, "contacts": plan.contacts,
           "versions": _versions(), "code": code_version(), "python": platform.python_version(),
           "device": str(jax.devices()[0].device_kind), "platform": jax.default_backend(),
           "device_count": jax.device_count(), "processes": jax.process_count(),
@@ -370,6 +398,7 @@ def from_json(payload, out: str, task: str | None = None) -> Plan:
       warnings += [f"{path}: {method} {note}" for note in notes]
     check_plan(payload["task"], spec, configs)
     physics = saved_physics(payload)
+    contacts = saved_contacts(payload)
     check_process_count(payload)
     moved = host_differs(payload)
     if moved:
@@ -379,7 +408,8 @@ def from_json(payload, out: str, task: str | None = None) -> Plan:
     raise ValueError(f"{path}: {e}") from None
   return Plan(task=payload["task"], preset=payload["preset"], seed=payload["seed"], out=out,
               spec=spec, configs=configs, overrides=overrides, widen=widen, warnings=warnings,
-              variants=variants, grouped=payload.get("grouped", False) is True, physics=physics)
+              variants=variants, grouped=payload.get("grouped", False) is True, physics=physics,
+              contacts=contacts)
 
 
 def check_process_count(payload) -> None:
@@ -406,6 +436,22 @@ def saved_physics(payload) -> str | None:
   if physics not in ("c", "mjx"):
     raise ValueError(f"physics must be c or mjx, got {physics!r}")
   return physics
+
+
+def saved_contacts(payload) -> str | None:
+  """The contact settings a saved run trained with: its ``contacts`` entry; for an ant run from
+  before the choice, ``mujoco3`` (what it ran on)."""
+  task, contacts = payload["task"], payload.get("contacts")
+  if not envs.has_physics(task):
+    if contacts is not None:
+      raise ValueError(f"contacts must be null for {task}, got {contacts!r}")
+    return None
+  if contacts is None:
+    return "mujoco3"
+  if contacts not in contacts_lib.CONTACTS:
+    raise ValueError(f"contacts must be one of {', '.join(contacts_lib.CONTACTS)}, got "
+                     f"{contacts!r}")
+  return contacts
 
 
 def _saved_config(payload, name: str, spec, overrides: dict, widen: dict):
