@@ -46,7 +46,10 @@ import mujoco
 import numpy as np
 
 CONTACTS = ("mujoco3", "mujoco2", "mujoco200")
-DEFAULT = "mujoco3"  # AntConfig's and a new run's
+DEFAULT = "mujoco3"  # AntConfig's (envs.make): MuJoCo 3 as it compiles the model
+# A new run's (``--contacts``): the closest this engine comes to the paper's MuJoCo 2.0, with
+# the one part no fixture can check (2.0's capsule inertia); ``mujoco2`` is the checked one
+RUN_DEFAULT = "mujoco200"
 MUJOCO2_TOLERANCE = 1e-10
 _SLIDE_ONLY = 2  # mjModel.body_simple of a body moved by slide joints only (MuJoCo 3)
 

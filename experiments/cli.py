@@ -164,10 +164,11 @@ def make_parser(task: str) -> argparse.ArgumentParser:
                         "step (10-25x MJX on a CPU); mjx, the MJX pipeline (for accelerators); "
                         "auto: c on a CPU, mjx on an accelerator; --resume keeps the run's")
     p.add_argument("--contacts", default=None, choices=contacts_lib.CONTACTS,
-                   help="the ant's engine settings: mujoco3, MuJoCo 3's (default); mujoco2, "
-                        "those that make MuJoCo 3 move the ant and blocks as MuJoCo 2.x; "
-                        "mujoco200, those and MuJoCo 2.0's capsule inertia, what the paper's "
-                        "code ran (docs/environments.md); --resume keeps the run's")
+                   help="the ant's engine settings: mujoco200 (default), those that make "
+                        "MuJoCo 3 move the ant and blocks as MuJoCo 2.x and MuJoCo 2.0's "
+                        "capsule inertia, what the paper's code ran; mujoco2, without the "
+                        "inertia (the settings checked against MuJoCo 2.3.7); mujoco3, MuJoCo "
+                        "3's own (docs/environments.md); --resume keeps the run's")
   _add_process_flags(p)
   p.add_argument("--no-progress", action="store_true", help="no progress bar")
   p.add_argument("--tensorboard", action="store_true",
@@ -340,7 +341,7 @@ def _run(plan: plan_lib.Plan, args: argparse.Namespace, programs=None) -> int:
       outputs.append(sinks.TensorBoard(plan.out))
     log = print
   physics = f", {plan.physics} physics" if plan.physics else ""
-  if plan.contacts not in (None, contacts_lib.DEFAULT):
+  if plan.contacts is not None:
     physics += f", {plan.contacts} contacts"
   across = f", {processes.count()} processes" if processes.count() > 1 else ""
   log(f"{plan.task}: {', '.join(plan.configs)} x {plan.spec.seeds} seeds x {plan.spec.steps} "

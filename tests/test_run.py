@@ -300,10 +300,11 @@ def test_the_ant_physics_is_recorded_and_an_old_ant_run_keeps_mjx(tmp_path):
 
 
 def test_the_ant_contacts_are_recorded_and_an_old_ant_run_keeps_mujoco3(tmp_path):
-  """``--contacts`` (envs.contacts) reaches the run's env and config.json; a run folder from
-  before the choice ran on MuJoCo 3's contacts and resumes on them."""
+  """``--contacts`` (envs.contacts) reaches the run's env and config.json, a new run's default
+  the paper's MuJoCo 2.0 as near as it goes; a run folder from before the choice ran on
+  MuJoCo 3's contacts and resumes on them."""
   plan = plan_lib.new_run("AntFall", ["hiro"], preset="quick", out=str(tmp_path / "a"))
-  assert plan.contacts == "mujoco3" and plan.env().config.contacts == "mujoco3"
+  assert plan.contacts == "mujoco200" and plan.env().config.contacts == "mujoco200"
   two = plan_lib.new_run("AntFall", ["hiro"], preset="quick", contacts="mujoco2")
   assert two.env().mj_model.geom_margin.max() == 0.005
   payload = plan_lib.to_json(two)

@@ -95,7 +95,7 @@ def new_run(task: str, method_names, preset: str = "paper", out: str | None = No
   sized for the run unless an override gives a size. ``sweep`` (dotted path -> list of
   values; several paths: their grid) makes each method one variant per value. ``physics``:
   the ant's, ``c``, ``mjx`` or ``auto`` (None: ``auto``); ``contacts``: the ant's contact
-  settings (``envs.contacts``; None: ``envs.contacts.DEFAULT``). Raises ValueError naming the
+  settings (``envs.contacts``; None: ``envs.contacts.RUN_DEFAULT``). Raises ValueError naming the
   field."""
   physics = run_physics(task, physics)
   contacts = run_contacts(task, contacts)
@@ -141,14 +141,15 @@ def run_physics(task: str, physics: str | None) -> str | None:
 
 def run_contacts(task: str, contacts: str | None) -> str | None:
   """The contact settings a new run of ``task`` records: for the ant ``contacts`` (None:
-  ``envs.contacts.DEFAULT``), None for the point robot, which has no choice."""
+  ``envs.contacts.RUN_DEFAULT``, the paper's MuJoCo 2.0 as near as it goes), None for the
+  point robot, which has no choice."""
   if not envs.has_physics(task):
     if contacts is not None:
       raise ValueError(f"--contacts: {task} has no contact settings (the point robot is pure "
                        "JAX)")
     return None
   if contacts is None:
-    return contacts_lib.DEFAULT
+    return contacts_lib.RUN_DEFAULT
   if contacts not in contacts_lib.CONTACTS:
     raise ValueError(f"--contacts must be one of {', '.join(contacts_lib.CONTACTS)}, got "
                      f"{contacts!r}")
