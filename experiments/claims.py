@@ -1,4 +1,7 @@
-"""The Ant Push study's readings, as its protocol states them (``results/antpush/README.md``).
+"""The Ant Push studies' readings, as their protocols state them: the first study
+(``results/antpush/README.md``) here, the decisive side-by-side one with the paper's code
+(``results/antpush_reference/README.md``) in ``experiments/sidebyside.py``, picked when the
+folders hold the reference harness's runs.
 
     python -m experiments.claims results/antpush          # prints the readings as markdown
     python -m experiments.claims results/antpush --reps exact   # every resample, no draw
@@ -27,7 +30,7 @@ import sys
 
 import numpy as np
 
-from experiments import plot, stats
+from experiments import plot, sidebyside, stats
 
 TASK = "AntPush"
 END = 1_000_000  # the protocol's budget: claims 1 and 4 are read there
@@ -202,6 +205,10 @@ def main(argv=None) -> int:
                       "is env step 1.1M)")
   args = p.parse_args(argv)
   try:
+    if sidebyside.is_study(args.dirs):  # on the paper's axis by its protocol
+      print(sidebyside.markdown(sidebyside.readings(sidebyside.load(args.dirs), args.reps)),
+            end="")
+      return 0
     rows = plot.load(args.dirs, args.axis)
     print(markdown(readings(rows, reps=args.reps, axis=args.axis)), end="")
   except ValueError as e:

@@ -1,0 +1,252 @@
+"""The decisive Ant Push study's readings: the paper's own code and ours, side by side
+(``results/antpush_reference/README.md`` states the protocol; written and tested on made-up
+rows before any of its results existed).
+
+    python -m experiments.claims results/antpush_reference            # picks this study
+    python -m experiments.claims results/antpush_reference --reps exact
+
+Everything is read on the paper's axis, env steps after the 100K warm-up (``x``; the paper's
+code logs at t - start_timestep, so its "1M" is env step 1.1M). The reference runs are the
+harness's folders (``reference/``: ``evaluations.csv``, ``windows.csv``, ``config.json``),
+turned into rows of the long form of ``metrics.csv`` (``reference_rows``); ours and HIRO are
+run folders (``experiments.plot.load(..., axis="paper")``).
+
+The readings (R1-R6 of the protocol):
+
+R1. the paper's code reproduces its headline: its S_E at x = 1M, the mean over seeds, against
+    0.6;
+R2. ours (the code's choices) at x = 1M, the IQM over seeds, against 0.6 (the first study's
+    claim 1, read on the paper's axis);
+R3. ours learns like the reference: each seed's late S_E (the mean of its evaluations with
+    0.9M <= x <= 1M), ours' mean minus the reference's, against the equivalence margin 0.2;
+R4. the final distance to the target, late, the same difference (described);
+R5. the Low: its mean reward per env step over the 50K env steps up to x = 200K, 500K, 1M
+    (described; both sides log it);
+R6. the modes: Middle decisions per mode from the end of warm-up to x = 1M (described: ours
+    has the text's 250K starting mode, the code none).
+
+Intervals are 95 % stratified-bootstrap percentile intervals (``experiments.stats``), 2000
+replicates drawn with seed 0 unless ``--reps`` says otherwise; with 3 reference seeds every
+resample is cheap, and ``--reps exact`` gives them.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+from collections import defaultdict
+
+import numpy as np
+
+from experiments import plot, stats
+
+TASK = "AntPush"
+REFERENCE = "reference"  # the method name of the paper's code's rows
+AT = 1_000_000  # the paper's 1M (x): R1, R2, R6
+LATE = (900_000, 1_000_000)  # R3, R4: every evaluation with LATE[0] <= x <= LATE[1]
+MARGIN = 0.2  # R3: "like the reference" if the difference's interval lies within +-MARGIN
+PASS = 0.6  # the paper's headline: S_E above 0.6 at its 1M
+LOW_AT = (200_000, 500_000, 1_000_000)  # R5, each over the LOW_SPAN env steps up to it
+LOW_SPAN = 50_000
+MODES = plot.MODES
+# The reference's mode counts (the code's names: on-policy is the Middle PPO, off-policy TD3)
+REFERENCE_COUNTS = {"TD3": "off_policy_count", "PPO": "on_policy_count",
+                    "RANDOM": "random_policy_count"}
+
+
+def _csv(path: str) -> list[dict]:
+  try:
+    with open(path, newline="") as f:
+      return list(csv.DictReader(f))
+  except OSError as e:
+    raise ValueError(f"{path}: cannot be read ({e.strerror or e})") from None
+
+
+def reference_folders(d: str) -> list[str]:
+  """The reference harness's run folders at or below ``d`` (each with evaluations.csv)."""
+  found = sorted(root for root, _, files in os.walk(d) if "evaluations.csv" in files)
+  return found
+
+
+def reference_rows(folder: str) -> list[dict]:
+  """One harness run folder as rows of the long form of ``metrics.csv`` on the paper's axis:
+  an evaluation row per evaluation (``eval_success`` the code's 'success rate',
+  ``eval_success_ppo`` its 'higher success rate', ``eval_distance``) and a row per window of
+  the Low's reward (``low_reward``) and the mode counts since warm-up (``cum_decisions_*``).
+  ``env_step`` is the code's logged step, t - start_timestep."""
+  try:
+    with open(os.path.join(folder, "config.json")) as f:
+      seed = str(json.load(f)["seed"])
+  except (OSError, ValueError, KeyError) as e:
+    raise ValueError(f"{folder}/config.json: the run's seed cannot be read ({e})") from None
+  base = {"task": TASK, "method": REFERENCE, "seed": seed}
+  rows = []
+  for r in _csv(os.path.join(folder, "evaluations.csv")):
+    rows.append({**base, "env_step": r["step"], "eval_success": r["success_rate"],
+                 "eval_success_ppo": r.get("higher_success_rate", ""),
+                 "eval_distance": r["final_distance"]})
+  for r in _csv(os.path.join(folder, "windows.csv")):
+    if int(r["step"]) > 0:
+      rows.append({**base, "env_step": r["step"], "eval_success": "",
+                   "low_reward": r["low_intrinsic_reward_mean"],
+                   **{f"cum_decisions_{m}": r[c] for m, c in REFERENCE_COUNTS.items()}})
+  return rows
+
+
+def load(dirs) -> list[dict]:
+  """The reference's rows and our run folders' rows (paper's axis) under ``dirs``; raises
+  ValueError naming a file that is not what it should be."""
+  rows = []
+  for d in dirs:
+    for folder in reference_folders(d):
+      rows += reference_rows(folder)
+    ours = [root for root, _, files in os.walk(d) if "metrics.csv" in files]
+    if ours:
+      rows += plot.load(ours, axis="paper")
+  if not rows:
+    raise ValueError(f"no reference runs and no run folders in {', '.join(dirs)}")
+  return rows
+
+
+def by_seed(rows, method, column, lo, hi) -> tuple[list[str], np.ndarray]:
+  """(seeds, each seed's mean of ``column`` over its rows with lo <= x <= hi); a seed with no
+  such row is left out."""
+  values = defaultdict(list)
+  for r in rows:
+    if r["method"] == method and r.get(column, "") != "" and lo <= int(r["env_step"]) <= hi:
+      values[r["seed"]].append(float(r[column]))
+  seeds = sorted(values, key=plot._seed_order)
+  return seeds, np.array([np.mean(values[s]) for s in seeds])
+
+
+def mean(x):
+  return np.asarray(x).mean(axis=(0, 1))
+
+
+def difference(x, y):
+  return mean(x) - mean(y)
+
+
+def versus_level(iv, level: float) -> str:
+  _, lo, hi = iv
+  return "holds" if lo >= level else "does not hold" if hi < level else "cannot be told apart"
+
+
+def equivalence(iv, margin: float = MARGIN) -> str:
+  """R3's reading of the difference ours - reference: within the margin, below or above (the
+  interval off 0), both, or neither shown."""
+  _, lo, hi = iv
+  within = -margin <= lo and hi <= margin
+  side = "ours below" if hi < 0 else "ours above" if lo > 0 else None
+  if within and side:
+    return f"{side}, by less than {margin}"
+  if within:
+    return f"like the reference (within +-{margin})"
+  if side:
+    return f"{side}" + (f" by more than {margin}" if (hi < -margin or lo > margin) else "")
+  return "cannot be told apart"
+
+
+def _reached(rows, method, x) -> bool:
+  return any(r["method"] == method and int(r["env_step"]) >= x and r["eval_success"] != ""
+             for r in rows)
+
+
+def _level_reading(rows, method, estimator, reps):
+  seeds, s_e = by_seed(rows, method, "eval_success", AT, AT)
+  if not _reached(rows, method, AT) or not len(s_e):
+    return {"reading": f"n/a (x = {AT} not reached)", "seeds": seeds}
+  iv = stats.interval(estimator, s_e, reps=reps)
+  return {"reading": versus_level(iv, PASS), "estimate": iv, "seeds": seeds,
+          "values": s_e.tolist()}
+
+
+def _difference(rows, column, lo, hi, reps):
+  s_ours, ours = by_seed(rows, "ours", column, lo, hi)
+  s_ref, ref = by_seed(rows, REFERENCE, column, lo, hi)
+  if not len(ours) or not len(ref):
+    return None
+  return {"difference": stats.interval(difference, ours, ref, reps=reps),
+          "ours": stats.interval(mean, ours, reps=reps),
+          "reference": stats.interval(mean, ref, reps=reps), "seeds": (len(ours), len(ref))}
+
+
+def _modes(rows, method):
+  """Each seed's Middle decisions per mode since warm-up at its last row with x <= AT."""
+  last = {}
+  for r in rows:
+    if (r["method"] == method and r.get("cum_decisions_TD3", "") != ""
+            and int(r["env_step"]) <= AT):
+      if r["seed"] not in last or int(r["env_step"]) > int(last[r["seed"]]["env_step"]):
+        last[r["seed"]] = r
+  if not last:
+    return None
+  return {m: np.array([float(r[f"cum_decisions_{m}"]) for r in last.values()]) for m in MODES}
+
+
+def readings(rows, reps=stats.REPS) -> dict:
+  """R1-R6 from the rows of the reference and ours (``load``)."""
+  if not any(r["method"] == REFERENCE for r in rows) or not any(r["method"] == "ours"
+                                                                 for r in rows):
+    raise ValueError(f"{TASK} rows of both the reference and ours are needed")
+  late_done = _reached(rows, "ours", LATE[1]) and _reached(rows, REFERENCE, LATE[1])
+  out = {"reps": reps, "r1": _level_reading(rows, REFERENCE, mean, reps),
+         "r2": _level_reading(rows, "ours", stats.iqm, reps), "late_done": late_done,
+         "r3": _difference(rows, "eval_success", *LATE, reps) if late_done else None,
+         "r4": _difference(rows, "eval_distance", *LATE, reps) if late_done else None,
+         "r5": {x: _difference(rows, "low_reward", x - LOW_SPAN + 1, x, reps) for x in LOW_AT
+                if _reached(rows, "ours", x) and _reached(rows, REFERENCE, x)},
+         "r6": {m: _modes(rows, m) for m in ("ours", REFERENCE)}}
+  if out["r3"] is not None:
+    out["r3"]["reading"] = equivalence(out["r3"]["difference"])
+  return out
+
+
+def _iv(iv, digits=2) -> str:
+  return f"{iv[0]:.{digits}f} [{iv[1]:.{digits}f}, {iv[2]:.{digits}f}]"
+
+
+def _diff_cell(d, digits=2) -> str:
+  if d is None:
+    return "n/a (not reached by both)"
+  return (f"ours {_iv(d['ours'], digits)} - reference {_iv(d['reference'], digits)} = "
+          f"{_iv(d['difference'], digits)} ({d['seeds'][0]} and {d['seeds'][1]} seeds)")
+
+
+def _level_cell(r) -> str:
+  if "estimate" not in r:
+    return ""
+  return (f"{_iv(r['estimate'])}; per seed " + ", ".join(f"{v:.2f}" for v in r["values"]))
+
+
+def markdown(r: dict) -> str:
+  how = ("every resample (exact)" if r["reps"] == "exact" else
+         f"{r['reps']} replicates drawn with seed 0")
+  lines = [f"Ant Push, the paper's code (reference) and ours, on the paper's axis (x = env "
+           f"steps after the 100K warm-up). Intervals: 95 % stratified bootstrap, percentile, "
+           f"{how}.", "", "| reading | result | numbers |", "|---|---|---|",
+           f"| R1. the code's S_E at x = 1M, mean over seeds, passes {PASS} | "
+           f"{r['r1']['reading']} | {_level_cell(r['r1'])} |",
+           f"| R2. ours' S_E at x = 1M, IQM over seeds, passes {PASS} | {r['r2']['reading']} | "
+           f"{_level_cell(r['r2'])} |"]
+  r3 = r["r3"]
+  lines.append(f"| R3. ours' late S_E (0.9M-1M) like the reference's (margin {MARGIN}) | "
+               f"{r3['reading'] if r3 else 'n/a (not reached by both)'} | {_diff_cell(r3)} |")
+  lines.append(f"| R4. final distance to the target, late (described) | | "
+               f"{_diff_cell(r['r4'])} |")
+  for x, d in r["r5"].items():
+    lines.append(f"| R5. the Low's reward per env step, {LOW_SPAN // 1000}K up to x = "
+                 f"{x // 1000}K (described) | | {_diff_cell(d)} |")
+  for m, counts in r["r6"].items():
+    if counts is not None:
+      cells = ", ".join(f"{mode} {np.mean(counts[mode]):.0f} ("
+                        + ", ".join(f"{v:.0f}" for v in counts[mode]) + ")" for mode in MODES)
+      lines.append(f"| R6. {m}: Middle decisions per mode since warm-up, up to x = 1M, mean "
+                   f"(per seed) (described) | | {cells} |")
+  return "\n".join(lines) + "\n"
+
+
+def is_study(dirs) -> bool:
+  """Whether ``dirs`` hold reference runs (this study) rather than only run folders."""
+  return any(reference_folders(d) for d in dirs)

@@ -1,0 +1,120 @@
+"""The decisive Ant Push study's readings (experiments/sidebyside.py) on made-up runs: the
+reference harness's folders and our run folders, written as each writes them."""
+
+import csv
+import json
+import os
+
+import numpy as np
+import pytest
+
+from experiments import claims, sidebyside
+from nonmono_jax.host import io
+
+WARMUP = 100_000
+
+
+def _reference(folder, seed, s_e, low=-3.0, counts=(100, 5000, 50), until=1_000_000):
+  """A harness run folder: evaluations every 10K (x from 10K), windows every 5K."""
+  os.makedirs(folder)
+  with open(os.path.join(folder, "config.json"), "w") as f:
+    json.dump({"seed": seed, "start_timestep": WARMUP}, f)
+  with open(os.path.join(folder, "evaluations.csv"), "w", newline="") as f:
+    w = csv.writer(f)
+    w.writerow(["t", "step", "success_rate", "higher_success_rate", "final_distance"])
+    for x in range(10_000, until + 1, 10_000):
+      w.writerow([x + WARMUP, x, s_e(x), 0.0, 19.0 * (1 - s_e(x))])
+  with open(os.path.join(folder, "windows.csv"), "w", newline="") as f:
+    w = csv.writer(f)
+    w.writerow(["t", "step", "low_intrinsic_reward_mean", "on_policy_count",
+                "off_policy_count", "random_policy_count"])
+    for x in range(-WARMUP + 5000, until + 1, 5000):
+      frac = max(x, 0) / until
+      w.writerow([x + WARMUP, x, low, *(int(c * frac) for c in counts)])
+
+
+def _ours(folder, per_seed, low=-3.0, until=1_000_000, method="ours"):
+  """Our run folder: a row per seed every 10K env steps, evaluated from x = 10K."""
+  os.makedirs(folder)
+  with open(os.path.join(folder, "config.json"), "w") as f:
+    json.dump({"configs": {method: {"warmup_steps": WARMUP, "num_envs": 1}}}, f)
+  with open(os.path.join(folder, "metrics.csv"), "w", newline="") as f:
+    w = csv.DictWriter(f, io.COLUMNS, extrasaction="ignore")
+    w.writeheader()
+    for env_step in range(10_000, WARMUP + until + 1, 10_000):
+      x = env_step - WARMUP
+      for seed, s_e in enumerate(per_seed):
+        w.writerow({"task": "AntPush", "method": method, "seed": seed, "env_step": env_step,
+                    "eval_success": s_e(x) if x > 0 else "", "eval_return": -1000,
+                    "eval_distance": 19.0 * (1 - s_e(x)), "low_reward": low,
+                    **{f"cum_steps_{m}": 0 for m in ("TD3", "PPO", "RANDOM")},
+                    **{f"cum_decisions_{m}": c * max(x, 0) // until
+                       for m, c in (("TD3", 6000), ("PPO", 1000), ("RANDOM", 2500))}})
+
+
+def _ramp(level, start=500_000):
+  return lambda x: round(level * min(max(x - start, 0) / 300_000, 1.0), 3)
+
+
+def _study(tmp_path, ref_levels, our_levels, until=1_000_000):
+  for i, level in enumerate(ref_levels):
+    _reference(str(tmp_path / "reference" / f"seed{i}"), i, _ramp(level), until=until)
+  _ours(str(tmp_path / "ours"), [_ramp(level) for level in our_levels], until=until)
+  return sidebyside.readings(sidebyside.load([str(tmp_path)]), reps="exact")
+
+
+def test_both_learning_alike_reads_as_like_the_reference(tmp_path):
+  r = _study(tmp_path, [0.8, 0.75, 0.85], [0.8, 0.7, 0.9, 0.75, 0.85, 0.8])
+  assert r["r1"]["reading"] == r["r2"]["reading"] == "holds"
+  assert r["r3"]["reading"] == "like the reference (within +-0.2)"
+  assert r["r1"]["seeds"] == ["0", "1", "2"] and r["r3"]["seeds"] == (6, 3)
+  assert abs(r["r5"][1_000_000]["difference"][0]) < 1e-9
+  assert np.mean(r["r6"]["reference"]["TD3"]) == 5000
+  text = sidebyside.markdown(r)
+  assert "| R1. the code's S_E at x = 1M, mean over seeds, passes 0.6 | holds |" in text
+
+
+def test_the_reference_learning_where_ours_does_not(tmp_path):
+  r = _study(tmp_path, [0.8, 0.75, 0.85], [0.0, 0.0, 0.1, 0.0, 0.0, 0.0])
+  assert r["r1"]["reading"] == "holds" and r["r2"]["reading"] == "does not hold"
+  assert r["r3"]["reading"] == "ours below by more than 0.2"
+  assert r["r4"]["difference"][1] > 0  # ours ends farther from the target
+
+
+def test_neither_learning_is_equivalent_and_says_nothing_of_the_paper(tmp_path):
+  """Both at 0: within the margin (the study then reads that neither reproduces here)."""
+  r = _study(tmp_path, [0.0, 0.0, 0.0], [0.0] * 6)
+  assert r["r1"]["reading"] == "does not hold"
+  assert r["r3"]["reading"] == "like the reference (within +-0.2)"
+
+
+def test_one_reference_seed_of_three_learning_cannot_be_told_apart(tmp_path):
+  r = _study(tmp_path, [0.9, 0.0, 0.0], [0.0] * 6)
+  assert r["r1"]["reading"] == "cannot be told apart"
+  assert r["r3"]["reading"] == "cannot be told apart"
+
+
+def test_runs_still_going_are_read_only_where_both_got(tmp_path):
+  r = _study(tmp_path, [0.8, 0.8, 0.8], [0.8] * 6, until=600_000)
+  assert r["r1"]["reading"].startswith("n/a") and r["r3"] is None
+  assert list(r["r5"]) == [200_000, 500_000]
+  assert "n/a (not reached by both)" in sidebyside.markdown(r)
+
+
+def test_claims_picks_the_study_by_its_folders(tmp_path, capsys):
+  _study(tmp_path, [0.8, 0.75, 0.85], [0.8, 0.7, 0.9, 0.75, 0.85, 0.8])
+  assert sidebyside.is_study([str(tmp_path)])
+  assert claims.main([str(tmp_path), "--reps", "exact"]) == 0
+  out = capsys.readouterr().out
+  assert "the paper's code (reference) and ours" in out and "every resample (exact)" in out
+  with pytest.raises(ValueError, match="no reference runs and no run folders"):
+    sidebyside.load([str(tmp_path / "empty")])
+
+
+def test_equivalence_readings():
+  assert sidebyside.equivalence((0.0, -0.1, 0.1)) == "like the reference (within +-0.2)"
+  assert sidebyside.equivalence((-0.1, -0.15, -0.05)) == "ours below, by less than 0.2"
+  assert sidebyside.equivalence((-0.5, -0.6, -0.3)) == "ours below by more than 0.2"
+  assert sidebyside.equivalence((-0.3, -0.4, -0.1)) == "ours below"
+  assert sidebyside.equivalence((0.0, -0.3, 0.4)) == "cannot be told apart"
+  assert sidebyside.equivalence((0.5, 0.3, 0.6)) == "ours above by more than 0.2"
