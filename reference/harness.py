@@ -245,7 +245,7 @@ class Harness:
 
   def _hook_evaluations(self, hiro):
     from reference import evaluation
-    td3 = hiro.evaluate
+    td3 = self.code_evaluate = hiro.evaluate
     if self.config.eval == "batched":
       td3 = evaluation.batched_evaluate(hiro, self)
     hiro.evaluate = self._evaluation("td3", td3)

@@ -171,6 +171,20 @@ def load_model_from_xml(xml):
   return PyMjModel(model)
 
 
+def raise_warnings(data):
+  """After a MuJoCo call: count the warnings it raised and, in 'raise' mode, raise
+  MujocoException. The counters are zeroed once read (an unstable state resets the data and
+  sets its counter to 1, so a second such step would not show as an increase); they are
+  statistics, not part of the dynamics."""
+  number = data.warning.number
+  if number.any():
+    names = [mujoco.mjtWarning(i).name for i in np.flatnonzero(number)]
+    warning_counts.update(names)
+    number[:] = 0
+    if _warning_mode == "raise":
+      raise MujocoException(f"Got MuJoCo Warning: {', '.join(names)}")
+
+
 class MjSim:
   """A running simulation: ``model``, ``data`` and mujoco_py's step, reset, forward and
   state copies."""
@@ -192,14 +206,8 @@ class MjSim:
       self.udd_state = self._udd_callback(self)
 
   def _checked(self, fn):
-    warnings = self.data.ptr.warning.number.copy()
     fn(self.model.ptr, self.data.ptr)
-    now = self.data.ptr.warning.number
-    if (now != warnings).any():
-      names = [mujoco.mjtWarning(i).name for i in np.flatnonzero(now != warnings)]
-      warning_counts.update(names)
-      if _warning_mode == "raise":
-        raise MujocoException(f"Got MuJoCo Warning: {', '.join(names)}")
+    raise_warnings(self.data.ptr)
 
   def step(self, with_udd=True):
     """``mj_step`` ``nsubsteps`` times (mujoco_py's ``MjSim.step``)."""
