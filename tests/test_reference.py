@@ -113,7 +113,9 @@ def test_the_standin_state_reset_and_model(mujoco_py, model_path):
     mujoco_py.MjViewer(sim)
 
 
-def test_the_standin_raises_on_mujoco_warnings_like_mujoco_py(mujoco_py, model_path):
+def test_the_standin_raises_on_mujoco_warnings_like_mujoco_py(mujoco_py, model_path, tmp_path,
+                                                              monkeypatch):
+  monkeypatch.chdir(tmp_path)  # MuJoCo writes its warnings to ./MUJOCO_LOG.TXT
   sim = mujoco_py.MjSim(mujoco_py.load_model_from_path(model_path))
   sim.data.qvel[0] = 1e11  # past mjMAXVAL: MuJoCo warns (BADQVEL) and resets the data
   with pytest.raises(mujoco_py.MujocoException, match="mjWARN_BADQVEL"):
