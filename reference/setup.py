@@ -1,10 +1,11 @@
 """Fetch the paper's code at the pinned commit, patch it and make the reference venv.
 
-    python -m reference.setup [--from-mirror GIT_DIR] [--venv PATH] [--home DIR]
+    python -m reference.setup [--from-mirror GIT_DIR] [--venv PATH]
 
 Idempotent: a step already done (the code extracted at the commit, the venv with its
 packages) is skipped. Without ``--from-mirror`` (or ``REFERENCE_MIRROR``) the upstream
-repository is cloned with git into ``HOME/upstream.git``.
+repository is cloned with git into ``reference/.code/upstream.git``. ``$REFERENCE_HOME``
+moves the whole ignored folder (the code, the default venv), for both commands.
 """
 
 import argparse
@@ -87,18 +88,15 @@ def main(argv=None):
                                    formatter_class=argparse.RawDescriptionHelpFormatter)
   parser.add_argument("--from-mirror", help="a local git directory holding the commit "
                       "(default: $REFERENCE_MIRROR, else clone the upstream repository)")
-  parser.add_argument("--venv", help="where to make the reference venv "
-                      "(default: HOME/venv)")
-  parser.add_argument("--home", default=str(reference.HOME),
-                      help="the ignored folder for the code and the default venv "
-                      "(default: reference/.code, or $REFERENCE_HOME)")
+  parser.add_argument("--venv", help="where to make the reference venv (default: "
+                      "reference/.code/venv, or $REFERENCE_HOME/venv)")
   parser.add_argument("--pip-args", default="", help="extra pip arguments, e.g. an index "
                       "serving torch's CPU wheels")
   parser.add_argument("--skip-venv", action="store_true", help="only fetch and patch")
   args = parser.parse_args(argv)
-  fetch(args.home, args.from_mirror)
+  fetch(reference.HOME, args.from_mirror)
   if not args.skip_venv:
-    make_venv(args.venv or reference.default_venv(args.home), args.pip_args.split())
+    make_venv(args.venv or reference.default_venv(), args.pip_args.split())
   return 0
 
 

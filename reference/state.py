@@ -23,8 +23,8 @@ import numpy as np
 import torch
 
 # Locals of hiro.train that are not saved: the env (its state is saved apart) and the run's
-# parameters (rebuilt from the same arguments on resume).
-SKIP = frozenset({"env", "params", "policy_params"})
+# parameters (rebuilt from the same arguments on resume; --steps may grow).
+SKIP = frozenset({"env", "params", "policy_params", "max_timestep"})
 BUFFERS = ("experience_buffer_l", "experience_buffer_h")
 _BUFFER_FIELDS = ("state", "goal", "action", "reward", "next_state", "next_goal", "done",
                   "state_start", "goal_start", "state_end")
