@@ -183,7 +183,8 @@ class Harness:
     self.code_run = code_run
     self._hook_loop(hiro, gym.spaces.Box)
     self._hook_evaluations(hiro)
-    self._quiet([hiro, utils, code_run] + [sys.modules[m] for m in ("ppo.PPO", "ppo.PPOM")])
+    self._quiet([hiro, utils, code_run] + [sys.modules[m] for m in ("ppo.PPO", "ppo.PPOM",
+                                                                    "ppo.config")])
 
   def _env_factory(self, create):
     def create_seeded(*args, **kwargs):
@@ -463,6 +464,7 @@ class Harness:
                        "wandb": "stand-in (reference/standins/wandb)"},
           "cpu": {k: v for k, v in _cpu().items() if k in (
               "Architecture", "Model name", "CPU family", "Model", "CPU(s)", "Flags")},
+          "harness": _harness_commit(),
           "host": platform.node(), "config": dataclasses.asdict(self.config), "sessions": []}
     data["sessions"].append({"started": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
                              "command": self.config.command, "threads": self.config.threads,
@@ -480,6 +482,19 @@ def _one_row_more(buffer_class):
     def __init__(self, capacity, *args, **kwargs):
       super().__init__(capacity + 1, *args, **kwargs)
   return ExperienceBufferLow
+
+
+def _harness_commit():
+  """The project's commit and whether reference/ has uncommitted changes (None: no git)."""
+  root = str(reference.PACKAGE.parent)
+  try:
+    head = subprocess.run(["git", "-C", root, "rev-parse", "HEAD"], capture_output=True,
+                          text=True, check=True).stdout.strip()
+    dirty = subprocess.run(["git", "-C", root, "status", "--porcelain", "reference"],
+                           capture_output=True, text=True, check=True).stdout.strip()
+  except (OSError, subprocess.CalledProcessError):
+    return None
+  return {"commit": head, "reference_dirty": bool(dirty)}
 
 
 def _mean(values):
