@@ -110,10 +110,10 @@ class _NumpyProxy:
 
   @staticmethod
   def argmax(a, *args, **kwargs):
-    """``off_policy_correction`` calls ``np.argmax(list of 0-d grad tensors)``. numpy 1.18
-    (the code's) made an object array of them and compared them with ``>``; numpy >= 1.20
-    calls ``Tensor.__array__``, which refuses tensors that require grad. Their float values
-    compare the same way (ties: the first index in both)."""
+    """``off_policy_correction`` calls ``np.argmax(list of 0-d grad tensors)``.
+    ``Tensor.__array__`` refuses tensors that require grad; numpy 1.18 (the code's) ignored
+    that error while coercing the list and took the tensors as scalars, numpy 2 raises it.
+    The argmax of their float values (ties: the first index)."""
     if isinstance(a, list) and a and hasattr(a[0], "detach"):
       a = [float(x.detach()) for x in a]
     return np.argmax(a, *args, **kwargs)
