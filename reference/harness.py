@@ -65,7 +65,7 @@ class Config:
   command: str = ""
 
   # Fields a resumed run may change.
-  FREE = ("stop_at", "command", "code_output", "steps")
+  FREE = ("stop_at", "command", "code_output", "steps", "warnings")
 
 
 class Stop(BaseException):
@@ -279,6 +279,10 @@ class Harness:
     if self.checkpoint_path.exists():
       from reference import state
       self.resume = state.read(self.checkpoint_path)
+      if 0 < self.config.stop_at <= self.resume["t"]:
+        print(f"{self.out}: at t={self.resume['t']}, stopped already (--stop-at "
+              f"{self.config.stop_at})")
+        return 3
       print(f"resuming {self.out} at t={self.resume['t']}", flush=True)
     t0 = 0 if self.resume is None else self.resume["t"]
     self.logs = logs_lib.Logs(str(self.out), t0)

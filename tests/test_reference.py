@@ -242,6 +242,8 @@ def test_a_run_is_the_same_twice_and_stopped_and_resumed(tmp_path):
   stop = _run(resumed, "--stop-at", "1000")
   assert stop.returncode == 3, stop.stdout + stop.stderr
   assert not (resumed / "final.pt").exists()
+  idle = _run(resumed, "--stop-at", "1000")  # the same command again: nothing to do
+  assert idle.returncode == 3 and "stopped already" in idle.stdout
   again = _run(resumed)
   assert again.returncode == 0 and "resuming" in again.stdout, again.stdout + again.stderr
   for name in ("evaluations.csv", "windows.csv"):
