@@ -1,0 +1,268 @@
+"""The reference harness (reference/, docs/reference.md): the mujoco_py and wandb stand-ins,
+the logs' cut on resume, the patches, the run folder's config check; with the reference venv
+and the fetched code (absent in CI: those tests skip), a tiny run of the paper's code that is
+the same twice and the same stopped and resumed, and the batched evaluation against the
+code's."""
+
+import importlib.util
+import json
+import os
+import pathlib
+import subprocess
+import sys
+
+import mujoco
+import numpy as np
+import pytest
+
+import reference
+from reference import harness, logs, patches, physics
+from reference import run as run_lib
+from tests.tests_support import ROOT
+
+# A small model with a free body, two hinges with motors and a floor: contacts, limits and an
+# RK4 integrator, as the ant has.
+XML = """
+<mujoco><option timestep="0.02" integrator="RK4"/>
+  <default><joint limited="true" armature="1" damping="1"/>
+    <geom condim="3" margin="0.01" friction="1 0.5 0.5" density="5"/></default>
+  <worldbody><geom name="floor" type="plane" size="10 10 1" conaffinity="1"/>
+    <body name="torso" pos="0 0 0.75"><freejoint name="root"/>
+      <geom name="torso_geom" type="sphere" size="0.25" conaffinity="0"/>
+      <body name="leg" pos="0.2 0 0"><joint name="hip" type="hinge" axis="0 0 1" range="-30 30"/>
+        <geom name="leg_geom" type="capsule" size="0.08" fromto="0 0 0 0.4 0 0"
+              conaffinity="0"/>
+        <body pos="0.4 0 0"><joint name="ankle" type="hinge" axis="0 1 0" range="30 70"/>
+          <geom name="foot" type="capsule" size="0.08" fromto="0 0 0 0.4 0 -0.4"
+                conaffinity="0"/></body></body></body></worldbody>
+  <actuator><motor joint="hip" ctrlrange="-30 30" ctrllimited="true" gear="1"/>
+    <motor joint="ankle" ctrlrange="-30 30" ctrllimited="true" gear="1"/></actuator>
+</mujoco>"""
+
+
+def _load_standin(name):
+  """Import a stand-in by path under its own name, without touching sys.path."""
+  path = reference.STANDINS / name / "__init__.py"
+  spec = importlib.util.spec_from_file_location(f"standin_{name}", path)
+  module = importlib.util.module_from_spec(spec)
+  spec.loader.exec_module(module)
+  return module
+
+
+@pytest.fixture
+def mujoco_py():
+  return _load_standin("mujoco_py")
+
+
+@pytest.fixture
+def model_path(tmp_path):
+  path = tmp_path / "m.xml"
+  path.write_text(XML)
+  return str(path)
+
+
+def _gym_like_step(sim, ctrl, frame_skip=5):
+  """gym 0.15.7's MujocoEnv.do_simulation."""
+  sim.data.ctrl[:] = ctrl
+  for _ in range(frame_skip):
+    sim.step()
+
+
+def test_the_standin_steps_as_raw_mj_step(mujoco_py, model_path):
+  """The same initial state and controls give the same trajectory, bit for bit."""
+  sim = mujoco_py.MjSim(mujoco_py.load_model_from_path(model_path))
+  model = mujoco.MjModel.from_xml_path(model_path)
+  data = mujoco.MjData(model)
+  rng = np.random.default_rng(0)
+  qpos = sim.data.qpos.copy() + rng.uniform(-0.1, 0.1, model.nq)
+  qvel = rng.normal(0, 0.1, model.nv)
+  sim.set_state(mujoco_py.MjSimState(0.0, qpos, qvel, None, {}))
+  sim.forward()
+  data.qpos[:], data.qvel[:] = qpos, qvel
+  mujoco.mj_forward(model, data)
+  for _ in range(60):
+    ctrl = rng.uniform(-30, 30, model.nu).astype(np.float32)
+    _gym_like_step(sim, ctrl)
+    data.ctrl[:] = ctrl
+    for _ in range(5):
+      mujoco.mj_step(model, data)
+    np.testing.assert_array_equal(sim.data.qpos, data.qpos)
+    np.testing.assert_array_equal(sim.data.qvel, data.qvel)
+  assert sim.data.time == pytest.approx(60 * 5 * 0.02)
+  np.testing.assert_array_equal(sim.data.get_body_xpos("torso"), data.body("torso").xpos)
+
+
+def test_the_standin_state_reset_and_model(mujoco_py, model_path):
+  model = mujoco_py.load_model_from_path(model_path)
+  sim = mujoco_py.MjSim(model)
+  assert model.opt.timestep == 0.02 and model.nq == 9 and model.nv == 8 and model.na == 0
+  np.testing.assert_array_equal(model.actuator_ctrlrange, [[-30, 30], [-30, 30]])
+  assert model.body_name2id("torso") == 1 and mujoco_py.get_version() >= "1.50"
+  _gym_like_step(sim, [10.0, -10.0])
+  state = sim.get_state()
+  assert state.act is None and state.udd_state == {} and state.time > 0
+  _gym_like_step(sim, [-5.0, 5.0])
+  sim.set_state(state)  # time, qpos, qvel only (mujoco_py's set_state)
+  np.testing.assert_array_equal(sim.data.qpos, state.qpos)
+  assert sim.data.time == state.time
+  np.testing.assert_array_equal(sim.data.ctrl, [-5.0, 5.0])
+  sim.reset()
+  assert sim.data.time == 0 and not sim.data.ctrl.any()
+  np.testing.assert_array_equal(sim.data.qpos, model.qpos0)
+  with pytest.raises(NotImplementedError):
+    mujoco_py.MjViewer(sim)
+
+
+def test_the_standin_raises_on_mujoco_warnings_like_mujoco_py(mujoco_py, model_path, tmp_path,
+                                                              monkeypatch):
+  monkeypatch.chdir(tmp_path)  # MuJoCo writes its warnings to ./MUJOCO_LOG.TXT
+  sim = mujoco_py.MjSim(mujoco_py.load_model_from_path(model_path))
+  sim.data.qvel[0] = 1e11  # past mjMAXVAL: MuJoCo warns (BADQVEL) and resets the data
+  with pytest.raises(mujoco_py.MujocoException, match="mjWARN_BADQVEL"):
+    sim.step()
+  sim.data.qvel[0] = 1e11
+  with mujoco_py.ignore_mujoco_warnings():
+    sim.step()
+  assert mujoco_py.warning_counts["mjWARN_BADQVEL"] == 2
+
+
+def test_the_model_hook_changes_each_loaded_model(mujoco_py, model_path):
+  def margins(model):
+    model.geom_margin[:] = 0.0
+    model.opt.timestep = 0.01
+  physics.register("test-no-margins", margins)
+  try:
+    mujoco_py.set_model_hook(physics.hook("test-no-margins"))
+    model = mujoco_py.load_model_from_path(model_path)
+    assert model.opt.timestep == 0.01 and not model.geom_margin.any()
+    mujoco_py.set_model_hook(physics.hook("as-is"))
+    assert mujoco_py.load_model_from_path(model_path).geom_margin.max() == 0.01
+  finally:
+    del physics.SETTINGS["test-no-margins"]
+  with pytest.raises(ValueError, match="unknown physics"):
+    physics.hook("nope")
+
+
+def test_the_wandb_standin_records_every_call_as_plain_numbers():
+  wandb = _load_standin("wandb")
+  seen = []
+  wandb.sinks.append(lambda record, step: seen.append((record, step)))
+  wandb.init(project="x")
+  wandb.log({"success rate": np.float64(0.5)}, step=10)
+  wandb.log({"critic_loss low": np.array(2.5, np.float32), "n": 3}, step=np.int64(11))
+  assert seen == [({"success rate": 0.5}, 10), ({"critic_loss low": 2.5, "n": 3}, 11)]
+  assert wandb.calls == seen and wandb.init_args == ((), {"project": "x"})
+
+
+def test_logs_are_cut_back_to_a_checkpoint(tmp_path):
+  first = logs.Logs(str(tmp_path), 0)
+  for t in (500, 1000, 1500):
+    first.evaluation({"t": t, "step": t - 300, "success_rate": 0.0})
+    first.window({"t": t, "step": t - 300})
+    first.wandb(t, t - 300, {"success rate": 0.0})
+  first.close()
+  again = logs.Logs(str(tmp_path), 1000)  # resumed at the top of iteration 1000
+  again.close()
+  assert [r["t"] for r in logs.read_csv(again.eval_path)] == ["500"]
+  assert [r["t"] for r in logs.read_csv(again.window_path)] == ["500", "1000"]
+  lines = [json.loads(x) for x in open(again.jsonl_path)]
+  assert [x["_t"] for x in lines] == [500]
+
+
+def test_patches_replace_one_exact_line(tmp_path):
+  (tmp_path / "a.py").write_text("x = 1\n    y = np.argmax(z)\n")
+  patch = patches.Patch("a.py", "y = np.argmax(z)", "y = 2", "a test")
+  done = patches.apply(tmp_path, (patch,))
+  assert (tmp_path / "a.py").read_text() == "x = 1\n    y = 2\n"
+  assert done == [{"path": "a.py", "line": 2, "old": "y = np.argmax(z)", "new": "y = 2",
+                   "why": "a test"}]
+  with pytest.raises(RuntimeError, match="found 0"):
+    patches.apply(tmp_path, (patch,))
+
+
+def test_a_run_folder_keeps_its_settings(tmp_path):
+  args = run_lib.parse(["--out", str(tmp_path / "r"), "--seed", "3"])
+  config = run_lib.config_from(args, "cmd")
+  run_lib.check_folder(config)
+  saved = json.loads((tmp_path / "r" / "config.json").read_text())
+  assert saved["seed"] == 3 and saved["threads"] == 1 and saved["seeded"]
+  assert saved["start_timestep"] == 100_000 and saved["evaluation_interval"] == 10_000
+  run_lib.check_folder(run_lib.config_from(
+      run_lib.parse(["--out", str(tmp_path / "r"), "--seed", "3", "--stop-at", "9"]), "cmd"))
+  with pytest.raises(SystemExit, match="seed=3"):
+    run_lib.check_folder(run_lib.config_from(
+        run_lib.parse(["--out", str(tmp_path / "r"), "--seed", "4"]), "cmd"))
+
+
+def test_evaluation_helpers():
+  limited = harness._limited_range(2)
+  assert (list(limited(10)), list(limited(5)), list(limited(8))) == ([0], [0, 1], list(range(8)))
+
+  class Buffer:
+    def __init__(self, capacity, dim):
+      self.capacity = capacity
+  assert harness._one_row_more(Buffer)(100, 3).capacity == 101
+
+
+# ----- with the reference venv and the fetched code ---------------------------------------------
+
+VENV = pathlib.Path(os.environ.get("REFERENCE_VENV") or reference.default_venv())
+HAVE_REFERENCE = (VENV / "bin" / "python").exists() and (reference.code_dir() / "hiro.py").exists()
+needs_reference = pytest.mark.skipif(
+    not HAVE_REFERENCE, reason="no reference venv or fetched code (python -m reference.setup)")
+TINY = ["--steps", "1500", "--start-timestep", "300", "--evaluation-interval", "500",
+        "--eval-episodes", "2", "--episode-len", "200", "--checkpoint-every", "500",
+        "--window", "250"]
+
+
+def _run(out, *extra):
+  return subprocess.run([sys.executable, "-m", "reference.run", "--out", str(out), *TINY,
+                         *extra], cwd=ROOT, capture_output=True, text=True, timeout=900,
+                        env=dict(os.environ, PYTHONPATH=str(ROOT)))
+
+
+def _same_weights(a, b):
+  code = ("import sys, torch; a, b = (torch.load(p, weights_only=False)['weights'] "
+          "for p in sys.argv[1:]); assert a.keys() == b.keys(); "
+          "assert all(torch.equal(a[k][n], b[k][n]) if torch.is_tensor(a[k][n]) else True "
+          "for k in a for n in a[k] if n != 'state' and n != 'param_groups'); "
+          "assert all(torch.equal(x['exp_avg'], y['exp_avg']) for k in a if 'state' in a[k] "
+          "for x, y in zip(a[k]['state'].values(), b[k]['state'].values()))")
+  return subprocess.run([str(VENV / "bin" / "python"), "-c", code, str(a), str(b)],
+                        capture_output=True, text=True)
+
+
+@pytest.mark.slow
+@needs_reference
+def test_a_run_is_the_same_twice_and_stopped_and_resumed(tmp_path):
+  """Same seed, same rows; stopped at 1,000 and resumed, the same rows and final weights as
+  the run straight through (timing columns aside)."""
+  straight, resumed = tmp_path / "straight", tmp_path / "resumed"
+  assert _run(straight).returncode == 0
+  stop = _run(resumed, "--stop-at", "1000")
+  assert stop.returncode == 3, stop.stdout + stop.stderr
+  assert not (resumed / "final.pt").exists()
+  idle = _run(resumed, "--stop-at", "1000")  # the same command again: nothing to do
+  assert idle.returncode == 3 and "stopped already" in idle.stdout
+  again = _run(resumed)
+  assert again.returncode == 0 and "resuming" in again.stdout, again.stdout + again.stderr
+  for name in ("evaluations.csv", "windows.csv"):
+    rows = logs.read_csv(straight / name)
+    assert rows == logs.read_csv(resumed / name) and rows
+  assert (straight / "wandb.jsonl").read_bytes() == (resumed / "wandb.jsonl").read_bytes()
+  check = _same_weights(straight / "final.pt", resumed / "final.pt")
+  assert check.returncode == 0, check.stderr
+  assert _run(resumed).stdout.strip().endswith("finished already")
+
+
+@pytest.mark.slow
+@needs_reference
+def test_the_batched_evaluation_judges_every_episode_as_the_code():
+  r = subprocess.run([sys.executable, "-m", "reference.compare_eval", "--episodes", "5",
+                      "--episode-len", "150", "--perturb", "1"], cwd=ROOT, capture_output=True,
+                     text=True, timeout=900, env=dict(os.environ, PYTHONPATH=str(ROOT)))
+  assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
+  summary = [json.loads(line) for line in r.stdout.splitlines() if line.startswith("{")]
+  assert len(summary) == 6
+  assert all(s["judgements_differing"] == 0 and s["max_final_distance_gap"] == 0.0
+             for s in summary)
