@@ -30,11 +30,16 @@ def parse(argv=None):
   p.add_argument("--steps", type=int, default=1_100_000,
                  help="env steps (the code's max_timestep; the Low buffer is sized for it)")
   p.add_argument("--threads", type=int, default=1, help="torch.set_num_threads")
-  p.add_argument("--eval", choices=("code", "batched"), default="code",
-                 help="the code's evaluation, or the TD3 one batched over its 50 episodes")
+  p.add_argument("--eval", choices=("code", "batched", "batched-td3"), default="code",
+                 help="the code's evaluations; 'batched': the TD3 one ('success rate', the "
+                      "one the Top reads) batched over its 50 episodes, the same judgements "
+                      "bit for bit; 'batched-td3': that, and the Middle PPO's ('higher "
+                      "success rate', read by nothing) left out")
   p.add_argument("--unseeded", action="store_true",
                  help="keep the code's seeding: the envs' generators from the OS")
-  p.add_argument("--physics", default="as-is", help="engine settings (reference.physics)")
+  p.add_argument("--physics", default="as-is",
+                 help="engine settings (reference.physics): as-is (MuJoCo 3's, = mujoco3), "
+                      "mujoco2, mujoco200 (envs/contacts.py, as our runs take them)")
   p.add_argument("--mujoco-warnings", choices=("raise", "count"), default="raise",
                  help="'raise': a MuJoCo warning ends the run, as with mujoco_py")
   p.add_argument("--code-output", default="", help="a file for the code's own prints "

@@ -266,3 +266,38 @@ def test_the_batched_evaluation_judges_every_episode_as_the_code():
   assert len(summary) == 6
   assert all(s["judgements_differing"] == 0 and s["max_final_distance_gap"] == 0.0
              for s in summary)
+
+
+def test_the_physics_settings_are_the_projects_contacts():
+  """``--physics mujoco2`` / ``mujoco200`` apply ``envs.contacts.apply_contacts``, loaded from
+  its file (the reference venv has no jax); ``as-is`` and ``mujoco3`` leave the model."""
+  import mujoco
+  from envs import ant, contacts, tasks
+  from reference import physics
+  xml = ant.ant_maze_xml(tasks.TASKS["Push"].layout(8.0), optimised=False)
+  assert {"as-is", "mujoco2", "mujoco200", "mujoco3"} <= set(physics.names())
+  assert physics.hook("as-is") is None and physics.hook("mujoco3") is None
+  for name in ("mujoco2", "mujoco200"):
+    theirs, ours = (mujoco.MjModel.from_xml_string(xml) for _ in range(2))
+    physics.hook(name)(theirs)
+    contacts.apply_contacts(ours, name)
+    for field in ("geom_margin", "body_mass", "body_invweight0"):
+      np.testing.assert_array_equal(getattr(theirs, field), getattr(ours, field))
+    assert theirs.geom_margin.max() == 0.005 and theirs.opt.tolerance == ours.opt.tolerance
+  with pytest.raises(ValueError, match="unknown physics 'mujoco1'; known: as-is"):
+    physics.hook("mujoco1")
+
+
+@pytest.mark.slow
+@needs_reference
+def test_a_run_with_the_studys_settings_leaves_out_the_ppo_evaluation(tmp_path):
+  """``--eval batched-td3 --physics mujoco200``, the decisive study's: S_E every evaluation,
+  the Middle PPO's left empty, the settings recorded."""
+  out = tmp_path / "run"
+  r = _run(out, "--eval", "batched-td3", "--physics", "mujoco200", "--steps", "1001")
+  assert r.returncode == 0, r.stdout + r.stderr
+  rows = logs.read_csv(out / "evaluations.csv")
+  assert rows and all(row["higher_success_rate"] == "" and row["successes_ppo"] == ""
+                      and 0 <= float(row["success_rate"]) <= 1 for row in rows)
+  config = json.loads((out / "config.json").read_text())
+  assert (config["eval"], config["physics"]) == ("batched-td3", "mujoco200")
