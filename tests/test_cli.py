@@ -207,6 +207,9 @@ def test_clock_estimates_the_next_chunk_by_the_last(tmp_path):
     (["--preset", "huge"], "invalid choice"),
     (["--top.alpha", "0", "0.4"], "top.alpha must have 3 entries"),
     (["--c", "-10"], "c must be >= 1"),
+    (["--c", "0"], "c must be >= 1"),  # not a ZeroDivisionError sizing the buffers
+    (["--sweep", "c=0"], "c must be >= 1"),
+    (["--num_envs", "0"], "num_envs must be >= 1"),
     (["--top.horizon", "-50"], "top.horizon must be >= 1"),
     (["--homeostasis.rho", "1.5"], "rho must be in (0, 1]"),
     (["--top.s_o", "0.6", "0.6", "2"], "top.s_o entries must be in"),

@@ -122,3 +122,19 @@ def test_distributed_flags_are_checked():
   with pytest.raises(SystemExit) as e:
     cli.main("PointMaze", TINY_RUN + ["--coordinator", "localhost:1"])
   assert e.value.code == 2
+
+
+@pytest.mark.parametrize("address,message", [
+    ("not a host", "--coordinator must be HOST:PORT, got 'not a host'"),
+    ("127.0.0.1:99999", "--coordinator's port must be in 1-65535, got '99999'"),
+    ("127.0.0.1:", "--coordinator's port must be in 1-65535, got ''"),
+    (":1234", "--coordinator must be HOST:PORT"),
+])
+def test_a_bad_coordinator_is_one_line_before_any_join(address, message, capsys):
+  """Checked before ``jax.distributed.initialize``: no traceback, no wait for a timeout."""
+  from experiments import cli
+  with pytest.raises(SystemExit) as e:
+    cli.main("PointMaze", TINY_RUN + ["--distributed", "--coordinator", address,
+                                      "--num-processes", "1", "--process-id", "0"])
+  assert e.value.code == 2
+  assert message in capsys.readouterr().err

@@ -223,7 +223,9 @@ def build_config(preset: str, method: str, task: str, overrides: dict, run: dict
   spec = _resized(spec, run)
   given = merge(layers, wide, overrides)
   value = lambda path: given.get(path, get(AgentConfig(), path))
-  sized = methods.buffer_sizes(spec.steps, value("c"), value("num_envs"))
+  c, num_envs = value("c"), value("num_envs")
+  valid = all(isinstance(v, int) and v >= 1 for v in (c, num_envs))  # else the config says so
+  sized = methods.buffer_sizes(spec.steps, c, num_envs) if valid else {}
   config = _explained(override, overrides, AgentConfig(), merge(layers, wide, sized, overrides))
   return config, spec
 

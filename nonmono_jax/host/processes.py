@@ -61,14 +61,26 @@ def join(coordinator: str | None = None, num_processes: int | None = None,
                      "of them, on SLURM or Open MPI)")
   if num_processes is not None and not 0 <= process_id < num_processes:
     raise ValueError(f"--process-id must be in [0, {num_processes}), got {process_id}")
+  if coordinator is not None:
+    check_address(coordinator)
   jax.config.update("jax_enable_recoverability", True)
   try:
     jax.distributed.initialize(coordinator, num_processes, process_id,
                                initialization_timeout=INIT_TIMEOUT_S,
                                heartbeat_timeout_seconds=HEARTBEAT_S)
-  except (RuntimeError, ValueError) as e:
+  except (RuntimeError, ValueError, IndexError) as e:  # IndexError: an address it cannot parse
     first = (str(e).strip().splitlines() or [type(e).__name__])[0]
     raise ValueError(f"--distributed: cannot join the run's processes ({first[:200]})") from None
+
+
+def check_address(coordinator: str) -> None:
+  """``--coordinator`` is HOST:PORT, the host without blanks, the port in 1-65535 (else the
+  join would wait out its timeout on a port no process can open); a ValueError naming it."""
+  host, sep, port = coordinator.rpartition(":")
+  if not sep or not host or any(ch.isspace() for ch in host):
+    raise ValueError(f"--coordinator must be HOST:PORT, got {coordinator!r}")
+  if not port.isdigit() or not 1 <= int(port) <= 65535:
+    raise ValueError(f"--coordinator's port must be in 1-65535, got {port!r}")
 
 
 def watch(on_lost, every_s: float = 5.0) -> None:
