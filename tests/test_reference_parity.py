@@ -9,13 +9,15 @@ ours equal to the code under the code's setting and the default differing, namin
 
 Tolerances, and why:
 
-* networks: forward passes, losses and y to a relative 1e-5 (float32 sums in another order:
-  XLA's dot against MKL's addmm); weights after the updates to an absolute 3e-6, against a
-  movement of up to 3 Adam steps of 1e-4 to 1e-3 (Adam's epsilon sits in the same place in
-  optax and torch, ``m_hat / (sqrt(v_hat) + eps)``; where a gradient is near eps = 1e-8 its
-  float32 rounding moves that entry's first step by up to a percent of the learning rate:
-  measured 8e-7 at most);
-* PPO: weights after 20 Adam steps to an absolute 2e-5 (the same, over more steps);
+* networks: forward passes, TD3 losses and y to a relative 1e-5 (float32 sums in another
+  order: XLA's dot against MKL's addmm); TD3 weights after 3 updates to an absolute 5e-6 (they
+  move by up to 3 Adam steps of 1e-4 (actor) or 1e-3 (critic); Adam's epsilon sits in the same
+  place in optax and torch, ``m_hat / (sqrt(v_hat) + eps)``, but where a gradient is near
+  eps = 1e-8 its float32 rounding moves that entry's first step by a part of the learning rate;
+  measured 8e-7 (Low) and 2.2e-6 (Middle critic));
+* PPO: the K-epoch mean losses to a relative 2e-4 (the surrogate is a mean of terms that
+  cancel, and each epoch starts from weights that drifted by the last: measured 5e-5); weights
+  after 20 Adam steps to an absolute 2e-5 (measured 9.5e-6);
 * the env: observations to 1e-6 (the float64 physics is the same, bit for bit on HIRO's
   literal model; ours hands float32 observations); the optimised build (merged walls, 8 solver
   iterations instead of 100 / 50) the same until the contact solve needs more than 8
@@ -49,7 +51,7 @@ GOAL_RANGE = np.array(fixtures.MAX_GOAL, np.float32)
 # The code's Top modes are 0 PPO, 1 TD3, 2 RANDOM; ours TD3, PPO, RANDOM (hierarchy.MODES).
 # The permutation is its own inverse: ours = PERMUTE[code] and code = PERMUTE[ours].
 PERMUTE = np.array([1, 0, 2])
-WEIGHTS_ATOL = 3e-6
+WEIGHTS_ATOL = 5e-6
 PPO_WEIGHTS_ATOL = 2e-5
 RTOL = 1e-5
 
@@ -399,7 +401,7 @@ def _ppo_state(learner, kind, out_perm=None):
 def _assert_ppo_losses(m, code_losses):
   """The code's K-epoch means: total, surrogate, 0.5 x mse, -0.01 x entropy."""
   ours = [m["loss"], m["policy_loss"], 0.5 * m["value_loss"], -0.01 * m["entropy"]]
-  np.testing.assert_allclose(np.array(ours, np.float64), code_losses, rtol=1e-4, atol=1e-6)
+  np.testing.assert_allclose(np.array(ours, np.float64), code_losses, rtol=2e-4, atol=1e-6)
 
 
 def test_middle_ppo_updates_follow_the_codes_train(fx):
