@@ -26,7 +26,8 @@ CODE = {"low.init": "torch", "middle.init": "torch", "middle_ppo.init": "torch",
         "scored_state": "current", "episode_start": "last", "middle_td3_input": "state",
         "returns_cross_episodes": True, "middle_td3_first_state": "reset",
         "warmup_goal": "gaussian", "eval_goal": "requery",
-        "eval_extra": ("held", "ppo")}
+        "eval_extra": ("held", "ppo"), "low.target_noise": "batch",
+        "top.ppo.value_weighting": "batch", "relabel_ties": "random"}
 
 
 @pytest.mark.parametrize("method", methods.METHODS)
@@ -45,6 +46,8 @@ def test_ant_presets_take_the_codes_choices_and_point_presets_keep_ours(method):
                                                False, False)
   assert (point.middle_td3_first_state, point.warmup_goal, point.eval_goal,
           point.eval_extra) == ("last", "uniform", "held", ())
+  assert (point.low.target_noise, point.top.ppo.value_weighting, point.relabel_ties) == (
+      "sample", "sample", "original")
 
 
 def test_torch_initialisation_is_uniform_in_one_over_sqrt_fan_in():

@@ -354,8 +354,13 @@ def test_fields_added_since_a_run_keep_the_behaviour_it_ran_with():
   assert config.episode_start == "last"  # what it saved stays
   today = methods.make_config("ours", "AntPush")
   assert (today.eval_goal, today.middle_td3_first_state) == ("requery", "reset")
-  assert any("has no middle_td3_first_state" in w and "the behaviour before they were added"
-             in w for w in plan.warnings)
+  assert any("has no " in w and "middle_td3_first_state" in w
+             and "the behaviour before they were added" in w for w in plan.warnings)
+  # the parity fixtures' options too (docs/fidelity.md, "(fixtures)")
+  assert (config.low.target_noise, config.top.ppo.value_weighting, config.relabel_ties) == (
+      "sample", "sample", "original")
+  assert (today.low.target_noise, today.top.ppo.value_weighting, today.relabel_ties) == (
+      "batch", "batch", "random")
 
 
 def test_a_checkpoint_without_the_later_state_fields_is_filled_as_its_code_ran():

@@ -25,13 +25,14 @@ import dataclasses
 import typing
 from typing import Any, Mapping
 
-from nonmono_jax.core import hierarchy, homeostasis, numbers, ppo, td3, validation
+from nonmono_jax.core import hierarchy, homeostasis, numbers, ppo, relabel, td3, validation
 from nonmono_jax.core.numbers import traced
 
 SWITCHES = ("none", "top", "homeostasis")  # HIRO / ours / Ref:Uniform and Ref:PPO
 EXPLORE_MODES = ("ppo", "random")  # the explore mode of the homeostasis switch
 RANDOM_GOALS = ("uniform", "gaussian")  # ours uniform; the paper's code clip(randn * range)
 RELABELS = ("store", "sample")  # the paper's code: once at store, Low target actor; HIRO: per batch
+RELABEL_TIES = relabel.TIES  # an exact tie of the correction's candidates: "random", the code's
 PPO_SAMPLES = ("own", "executed")  # what the Middle PPO stores for segments other modes ran
 # Where the paper's code made a choice that this project first made otherwise
 # (docs/fidelity.md): the first value is the earlier one, kept as the default so that every
@@ -109,6 +110,7 @@ class AgentConfig:
   explore_mode: str = "ppo"  # homeostasis only: the explore mode, "ppo" or "random"
   random_goal: str = "uniform"
   middle_relabel: str = "store"  # HIRO's goal relabelling: "store" (paper's code) or "sample"
+  relabel_ties: str = "original"  # RELABEL_TIES: the winner of an exact tie; the code: "random"
   middle_ppo_sample: str = "own"  # Middle PPO rollout: its "own" sample or the "executed" goal
   low_done_goal: str = "next"  # LOW_DONE_GOALS; the code: "current"
   scored_state: str = "next"  # SCORED_STATES; the code: "current" (evaluation scores s' always)
@@ -148,6 +150,7 @@ class AgentConfig:
       raise ValueError(f"eval_extra entries must be among {', '.join(EVAL_KINDS)}; got {bad[0]!r}")
     for name, allowed in (("switch", SWITCHES), ("explore_mode", EXPLORE_MODES),
                           ("random_goal", RANDOM_GOALS), ("middle_relabel", RELABELS),
+                          ("relabel_ties", RELABEL_TIES),
                           ("middle_ppo_sample", PPO_SAMPLES), ("low_done_goal", LOW_DONE_GOALS),
                           ("scored_state", SCORED_STATES), ("episode_start", EPISODE_STARTS),
                           ("middle_td3_input", MIDDLE_TD3_INPUTS),

@@ -203,7 +203,8 @@ class Middle:
     """HIRO's correction of the segment's goal under the Low's target actor (at store)."""
     policy = lambda obs, g: self.low_act(low_params.replace(actor=low_params.target_actor),
                                          obs, g)
-    return relabel.relabel(key, policy, seg.obs, seg.actions, seg.goal, self.goal_range)[0]
+    return relabel.relabel(key, policy, seg.obs, seg.actions, seg.goal, self.goal_range,
+                           ties=self.config.relabel_ties)[0]
 
   def pack(self, seg: Segment, g, episode_end, start=None) -> tuple[dict, ppo.Rollout]:
     """The Middle TD3 buffer item (goal ``g``) and the Middle PPO rollout step of a segment.
@@ -283,7 +284,8 @@ class Middle:
       batch = sample["transition"]
       if not self.relabels_at_store:
         policy = lambda obs, g: self.low_act(low_params, obs, g)
-        relabelled = lambda kk, s, a, g: relabel.relabel(kk, policy, s, a, g, self.goal_range)
+        relabelled = lambda kk, s, a, g: relabel.relabel(kk, policy, s, a, g, self.goal_range,
+                                                         ties=config.relabel_ties)
         goals, _ = jax.vmap(relabelled)(jax.random.split(k2, cfg.batch_size),
                                         sample["states"], sample["actions"], batch.action)
         batch = batch.replace(action=goals)

@@ -15,7 +15,10 @@ One update, over a rollout of N transitions (N = 3 at the Middle, 8 at the Top):
 ``w_t`` is 1 except at the Top, where Algorithm 1's Train_T sets ``l + S_E l`` in the
 exploration modes and ``l - S_E l`` in the TD3 mode (``top_loss_weights``). Note that Adam is
 invariant to a uniform rescaling of the loss: the weights change an update only where they
-differ between samples.
+differ between samples. ``value_weighting`` says what the weight multiplies of the value term:
+the sample's own ``c_v (V_phi(s_t) - R_t)^2`` (``"sample"``), or the rollout's mean value loss
+``c_v mean_j (V_phi(s_j) - R_j)^2``, which the paper's code (``PPOM.train``) adds to every
+sample's loss before weighting it (``"batch"``); with weights of 1 the two are the same.
 
 Kept from the port: full-batch epochs (no minibatches), normalised Monte Carlo returns that
 do not bootstrap past the rollout's end, no GAE, no advantage normalisation, no gradient
@@ -48,6 +51,8 @@ from nonmono_jax.core.numbers import Numbers, traced
 _RETURN_EPS = 1e-7  # the port's normaliser epsilon
 _LOG_2PI_E = math.log(2.0 * math.pi * math.e)
 MEAN_HEADS = ("linear", "tanh")
+VALUE_WEIGHTINGS = ("sample", "batch")  # the loss weight on each sample's value error, or on
+#                                         the rollout's mean value loss (the paper's PPOM)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -72,6 +77,7 @@ class PPOConfig:
   # t = 0 too, so the Middle's std is 0.55 on [0, 250K)); False: std_init until the first period
   decay_at_start: bool = False
   init: str = "lecun"  # networks.INITS: "torch" is the paper's code (PyTorch's nn.Linear default)
+  value_weighting: str = "sample"  # VALUE_WEIGHTINGS: "batch" is the paper's code (module doc)
 
   def __post_init__(self):
     object.__setattr__(self, "hidden", tuple(int(h) for h in self.hidden))
@@ -103,6 +109,9 @@ class PPOConfig:
     if self.mean_head not in MEAN_HEADS:
       raise ValueError(f"mean_head must be one of {', '.join(MEAN_HEADS)}, "
                        f"got {self.mean_head!r}")
+    if self.value_weighting not in VALUE_WEIGHTINGS:
+      raise ValueError(f"value_weighting must be one of {', '.join(VALUE_WEIGHTINGS)}, "
+                       f"got {self.value_weighting!r}")
 
 
 @struct.dataclass
@@ -269,7 +278,8 @@ def make_ppo(obs_size: int, action_size: int, config: PPOConfig = PPOConfig(),
     ratio = jp.exp(log_ratio)
     surrogate = jp.minimum(ratio * adv, jp.clip(ratio, 1 - hp.clip, 1 + hp.clip) * adv)
     value_err = (v - returns) ** 2
-    loss = -surrogate + hp.value_coef * value_err - hp.entropy_coef * ent
+    value_term = value_err if config.value_weighting == "sample" else value_err.mean()
+    loss = -surrogate + hp.value_coef * value_term - hp.entropy_coef * ent
     metrics = {
         "policy_loss": -surrogate.mean(),
         "value_loss": value_err.mean(),

@@ -10,6 +10,11 @@ candidate that best explains the stored low actions under the current low policy
     g* = argmax over candidates
 
 The goal is a relative xyz offset: the first ``goal_size`` entries of the observation.
+
+Exact ties (a Low policy whose actions do not depend on the goal, e.g. saturated in float32
+tanh, scores every candidate alike) go to the original goal, then s_c - s_0, then the random
+ones (``ties="original"``), or as the paper's code orders its candidates, the random ones
+first, then s_c - s_0, then the goal (``ties="random"``, ``off_policy_correction``).
 """
 
 from __future__ import annotations
@@ -20,6 +25,7 @@ import jax
 import jax.numpy as jp
 
 N_RANDOM = 8  # HIRO: 8 random candidates + the original goal + s_c - s_0
+TIES = ("original", "random")  # which candidate wins an exact tie (module doc)
 
 
 def goal_sequence(goal: jax.Array, states: jax.Array) -> jax.Array:
@@ -47,7 +53,7 @@ def action_log_likelihood(low_policy: Callable[[jax.Array, jax.Array], jax.Array
 
 def relabel(key: jax.Array, low_policy: Callable[[jax.Array, jax.Array], jax.Array],
             states: jax.Array, actions: jax.Array, goal: jax.Array, goal_range: jax.Array,
-            n_random: int = N_RANDOM) -> tuple[jax.Array, jax.Array]:
+            n_random: int = N_RANDOM, ties: str = "original") -> tuple[jax.Array, jax.Array]:
   """(relabelled goal, index of the chosen candidate) for one Middle transition.
 
   Args:
@@ -57,8 +63,15 @@ def relabel(key: jax.Array, low_policy: Callable[[jax.Array, jax.Array], jax.Arr
     actions: (c, action) the low actions taken at s_0..s_{c-1}.
     goal: (goal_size,) the goal the Middle emitted at s_0.
     goal_range: (goal_size,) the Middle's action bound.
+    ties: ``TIES``: which candidate wins an exact tie.
   """
+  if ties not in TIES:
+    raise ValueError(f"ties must be one of {', '.join(TIES)}, got {ties!r}")
   cands = candidates(key, goal, states[0], states[-1], goal_range, n_random)
   logp = jax.vmap(lambda g: action_log_likelihood(low_policy, states[:-1], actions, g))(cands)
-  best = jp.argmax(logp)
+  if ties == "original":
+    best = jp.argmax(logp)
+  else:  # the code's order: the random candidates, s_c - s_0, the goal; argmax takes the first
+    order = jp.concatenate([jp.arange(2, n_random + 2), jp.array([1, 0])])
+    best = order[jp.argmax(logp[order])]
   return cands[best], best

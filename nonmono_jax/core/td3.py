@@ -12,7 +12,9 @@ The context ``g`` is the Low level's goal or the Middle level's target position;
 take ``concat(s, g[, a])``. The delayed actor step is gated by an argument that the trainer
 derives from its unbatched step counter, so under ``vmap`` over seeds it stays a real
 ``lax.cond`` branch (docs/spec.md, section 6). In ours the Middle TD3 uses no target smoothing
-(``target_smoothing=False``); HIRO keeps it.
+(``target_smoothing=False``); HIRO keeps it. The smoothing noise is drawn per sample (TD3's,
+``target_noise="sample"``) or once per batch, one vector shared by every sample
+(``"batch"``: the paper's code, ``hiro.step_update_l``).
 """
 
 from __future__ import annotations
@@ -28,6 +30,8 @@ from flax import struct
 
 from nonmono_jax.core import learning, networks
 from nonmono_jax.core.numbers import Numbers, traced
+
+TARGET_NOISES = ("sample", "batch")  # target smoothing: a draw per sample, or one per batch
 
 
 @dataclasses.dataclass(frozen=True)
@@ -46,6 +50,7 @@ class TD3Config:
   expl_noise: float = traced(1.0)  # behaviour noise std before clipping (Low: N(0, 1) on torques)
   buffer_size: int = 200_000  # a ring; the run presets size it to the run (never evicts)
   target_smoothing: bool = True
+  target_noise: str = "sample"  # TARGET_NOISES: "batch" is the paper's code (one draw a batch)
   init: str = "lecun"  # networks.INITS: "torch" is the paper's code (PyTorch's nn.Linear default)
 
   def __post_init__(self):
@@ -63,6 +68,9 @@ class TD3Config:
       raise ValueError(f"hidden must be positive layer sizes, got {self.hidden}")
     if self.init not in networks.INITS:
       raise ValueError(f"init must be one of {', '.join(networks.INITS)}, got {self.init!r}")
+    if self.target_noise not in TARGET_NOISES:
+      raise ValueError(f"target_noise must be one of {', '.join(TARGET_NOISES)}, "
+                       f"got {self.target_noise!r}")
 
 
 @struct.dataclass
@@ -154,7 +162,8 @@ def make_td3(obs_size: int, context_size: int, action_size: int, action_scale,
   def critic_loss(critic_params, params: TD3Params, batch: Transition, key, hp: Numbers):
     a_next = pi(params.target_actor, batch.next_obs, batch.next_context)
     if config.target_smoothing:
-      noise = jp.clip(hp.policy_noise * jax.random.normal(key, a_next.shape),
+      shape = a_next.shape if config.target_noise == "sample" else a_next.shape[-1:]
+      noise = jp.clip(hp.policy_noise * jax.random.normal(key, shape),
                       -hp.noise_clip, hp.noise_clip)
       a_next = jp.clip(a_next + noise, -scale, scale)
     q_next = q_values(params.target_critic, batch.next_obs, batch.next_context, a_next)

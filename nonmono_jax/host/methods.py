@@ -79,7 +79,8 @@ _ANT: dict = {**_TORCH_INIT, "middle_ppo.decay_at_start": True, "low_done_goal":
               "scored_state": "current", "episode_start": "last", "middle_td3_input": "state",
               "returns_cross_episodes": True, "middle_td3_first_state": "reset",
               "warmup_goal": "gaussian", "eval_goal": "requery",
-              "eval_extra": ("held", "ppo")}
+              "eval_extra": ("held", "ppo"), "low.target_noise": "batch",
+              "top.ppo.value_weighting": "batch", "relabel_ties": "random"}
 _POINT_TD3 = {"hidden": (64, 64), "lr_actor": 1e-3}
 _POINT_PPO = {"hidden": (64, 64), "std_decay_every": 20_000}
 _POINT = {
