@@ -51,7 +51,6 @@ from jax.sharding import Mesh, NamedSharding, PartitionSpec as P
 from nonmono_jax.core import agent as agent_lib
 from nonmono_jax.core import numbers
 from nonmono_jax.core import metrics as metrics_lib
-from nonmono_jax.core.config import check_group
 
 
 def compiled_bytes(compiled) -> dict:
@@ -118,7 +117,7 @@ def make_group_trainer(env, configs: Sequence[agent_lib.AgentConfig], num_seeds:
                        compiler_options: Mapping[str, Any] | None = None) -> Trainer:
   """One program for ``configs`` (equal ``numbers.static_key``s, else a ValueError naming the
   fields): ``len(configs) * num_seeds`` lanes, each with its variant's ``Numbers``."""
-  key = check_group(list(configs))
+  key = numbers.check_group(list(configs))
   per_lane = jax.tree.map(lambda x: np.repeat(x, num_seeds, axis=0),
                           numbers.stack(list(configs)))
   return _make(env, key, per_lane, num_seeds, chunk_steps, devices, compiler_options,
