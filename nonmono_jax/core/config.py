@@ -230,8 +230,10 @@ class TopConfig:
   """The Top level: PPO over g_expl_mode in (TD3, PPO, RANDOM), one choice per ``horizon``."""
 
   horizon: int = 50  # Top horizon, env steps
-  alpha: tuple[float, float, float] = traced((0.0, 0.4, 0.7))  # R_final = R_m + alpha[m] R_m
-  s_o: tuple[float, float, float] = traced((0.6, 0.6, 0.6))  # done_m = S_O_m >= S_O[m]
+  # R_final = R_m + alpha[m] R_m, one per mode (TD3, PPO, RANDOM): larger, rarer mode
+  alpha: tuple[float, float, float] = traced((0.0, 0.4, 0.7))
+  # done_m = S_O_m >= S_O[m], one per mode (TD3, PPO, RANDOM)
+  s_o: tuple[float, float, float] = traced((0.6, 0.6, 0.6))
   s_o_start: float = traced(0.9)  # S_O during the starting mode
   starting_steps: int = 250_000  # after warm-up, the Top is forced to RANDOM for this long
   train_every: int = 400  # Top PPO trains on the train_every / horizon latest Top transitions
@@ -307,11 +309,12 @@ class AgentConfig:
   num_envs: int = 1  # envs per seed (paper: 1)
   low_updates: int = 1  # Low TD3 updates per (vector) env step
   middle_updates: int = 1  # Middle TD3 updates per Middle horizon
-  top: TopConfig = TopConfig()
+  top: TopConfig = TopConfig()  # the Top PPO that picks g_expl_mode per Top horizon (ours)
+  # Pislar et al.'s informed trigger between TD3 and one explore mode (Ref:Uniform, Ref:PPO)
   homeostasis: HomeostasisConfig = HomeostasisConfig()
-  low: TD3Config = TD3Config()
-  middle: TD3Config = TD3Config(target_smoothing=False)
-  middle_ppo: PPOConfig = PPOConfig()
+  low: TD3Config = TD3Config()  # the Low TD3: torques every env step toward the Middle's goal
+  middle: TD3Config = TD3Config(target_smoothing=False)  # the Middle TD3: a goal every c steps
+  middle_ppo: PPOConfig = PPOConfig()  # the Middle PPO: the PPO mode's goals (Gaussian)
 
   def __post_init__(self):
     object.__setattr__(self, "goal_range", tuple(float(g) for g in self.goal_range))
