@@ -8,7 +8,6 @@ from envs import quiet  # noqa: F401 - before brax: mujoco.mjx's import prints n
 
 from envs import tasks
 from envs.ant_maze import AntConfig, AntMazeEnv
-from envs.base import EnvConfig, MazeEnv, MazeState
 from envs.point_maze import PointConfig, PointMazeEnv
 
 _ROBOTS = {"Ant": (AntMazeEnv, AntConfig), "Point": (PointMazeEnv, PointConfig)}

@@ -38,7 +38,6 @@ from experiments import cores
 
 cores.share(sys.argv[1:])  # before JAX loads: this process's share of a machine it shares
 
-from experiments import flags  # noqa: E402
 from experiments.flags import EXIT_BAD_INPUT, EXIT_FAILED, EXIT_TIME_LIMIT  # noqa: E402,F401
 from experiments.flags import make_parser, parse_sweep  # noqa: E402,F401 - the command's flags
 from nonmono_jax.host import interrupts  # noqa: E402

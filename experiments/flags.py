@@ -92,7 +92,8 @@ def make_parser(task: str) -> argparse.ArgumentParser:
   p.add_argument("--preset", default="paper", choices=methods.PRESETS,
                  help=f"paper: the paper's numbers (docs/spec.md), {paper.seeds} seeds x "
                       f"{paper.steps:,} steps, a GPU job (days on a CPU for an ant); quick: "
-                      f"{quick.seeds} seed{'s' * (quick.seeds > 1)} x {quick.steps:,} steps, the whole pipeline in "
+                      f"{quick.seeds} seed{'s' * (quick.seeds > 1)} x {quick.steps:,} steps, "
+                      f"the whole pipeline in "
                       f"minutes on a CPU (default: paper)")
   p.add_argument("--seeds", type=int, default=None, metavar="N",
                  help=f"seeds, vmapped ({size('seeds')})")
