@@ -28,6 +28,7 @@ import time
 import jax
 import numpy as np
 
+from nonmono_jax.core.config import differences
 from nonmono_jax.host import interrupts, io, processes, runlock
 from nonmono_jax.host.interrupts import Terminated  # noqa: F401 - SIGTERM, as Ctrl-C
 from nonmono_jax.host.programs import Programs
@@ -152,6 +153,29 @@ def open_folder(plan: Plan, resume: bool = False):
     yield plan
 
 
+def new_or_continued(plan: Plan) -> tuple[Plan, bool]:
+  """(plan, resume): ``plan`` as new, or the run its folder already holds if that is the same
+  run (task, seed, size, physics, every variant's config), to continue: a notebook run twice
+  picks up where it stopped (a finished run trains nothing more) instead of failing. A
+  folder that holds another run is a BadFolder naming the first difference."""
+  if not os.path.exists(os.path.join(plan.out, "config.json")):
+    return plan, False
+  saved = load_run(plan.out, task=plan.task)
+  mine = {"task": plan.task, "seed": plan.seed, "spec": plan.spec, "physics": plan.physics,
+          "contacts": plan.contacts, "variants": list(plan.configs)}
+  theirs = {"task": saved.task, "seed": saved.seed, "spec": saved.spec,
+            "physics": saved.physics, "contacts": saved.contacts,
+            "variants": list(saved.configs)}
+  differ = [k for k in mine if mine[k] != theirs[k]] + [
+      f"{name} {', '.join(differences(plan.configs[name], saved.configs[name]))}"
+      for name in plan.configs if name in saved.configs
+      and plan.configs[name] != saved.configs[name]]
+  if differ:
+    raise BadFolder(f"{plan.out} holds another run (it differs in {differ[0]}): choose another "
+                    f"folder, or remove that one")
+  return saved, True
+
+
 def check_new_out(out: str) -> None:
   """A new run's folder is absent or empty (a lock alone: a start that failed); else BadFolder
   saying how to continue the run it holds."""
@@ -246,6 +270,9 @@ def _train(plan: Plan, names, trainer, ckpts, outputs, clock: Clock, log):
     log(f"{', '.join(names)}: compiling the training program ...", flush=True)
     t = time.monotonic()
     start, states = _restore(trainer, names, ckpts, plan.seed, log)
+    if start >= spec.steps:
+      log(f"{', '.join(names)}: already trained to step {start}, the run's end", flush=True)
+      return
     cached = compile_chunk(trainer, states, start)
     log(f"{', '.join(names)}: compiled in {time.monotonic() - t:.0f} s"
         + (" (from the compilation cache)" if cached else ""), flush=True)
