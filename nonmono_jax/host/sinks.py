@@ -21,6 +21,7 @@ import json
 import math
 import os
 import sys
+import uuid
 
 import numpy as np
 
@@ -157,6 +158,50 @@ class TensorBoard:
     if self.writer is not None:
       self.writer.close()
       self.writer = None
+
+
+class WandB:
+  """Weights & Biases: one W&B run per method (variant) in ``project``, grouped by the run
+  folder, with the method's config and the run's size as its config, and per chunk the
+  TensorBoard sink's scalars (``scalars``) at the env step. With ``WANDB_MODE=offline`` (no
+  account, no network) it writes ``OUT/wandb/offline-run-*`` only (``wandb sync`` uploads it later). A
+  resumed run continues the same W&B runs (their ids in ``OUT/wandb/ids.json``); W&B keeps the
+  first value logged at a step, so chunks redone after a resume do not replace theirs."""
+
+  def __init__(self, plan, project: str):
+    import wandb  # the [wandb] extra (check_available)
+    self.wandb, self.plan, self.project, self.runs = wandb, plan, project, {}
+    self.folder = os.path.join(plan.out, "wandb")
+
+  def _id(self, method: str) -> str:
+    """The W&B run id of ``method``, made once per run folder and kept there."""
+    path = os.path.join(self.folder, "ids.json")
+    ids = io.read_json(path) if os.path.exists(path) else {}
+    if method not in ids:
+      ids[method] = uuid.uuid4().hex[:8]  # W&B's id format: 8 of [a-z0-9]
+      os.makedirs(self.folder, exist_ok=True)
+      io.write_json(path, ids)
+    return ids[method]
+
+  def begin(self, method: str, env_step: int) -> None:
+    if method in self.runs:
+      return
+    plan = self.plan
+    config = {"task": plan.task, "method": method, "preset": plan.preset, "seed": plan.seed,
+              "run": io.to_jsonable(plan.spec), "agent": io.to_jsonable(plan.configs[method])}
+    self.runs[method] = self.wandb.init(
+        project=self.project, id=self._id(method), resume="allow", dir=plan.out,
+        name=f"{os.path.basename(os.path.abspath(plan.out))}/{method}",
+        group=os.path.basename(os.path.abspath(plan.out)), job_type=plan.task, config=config,
+        reinit="create_new")
+
+  def write(self, result) -> None:
+    self.runs[result.method].log(scalars(result), step=result.env_step)
+
+  def close(self) -> None:
+    runs, self.runs = self.runs, {}
+    for r in runs.values():
+      r.finish()
 
 
 class Progress:
