@@ -267,15 +267,15 @@ def _train(plan: Plan, names, trainer, ckpts, outputs, clock: Clock, log):
   multi-process run raises ``processes.ProcessLost``)."""
   spec, num_envs = plan.spec, plan.configs[names[0]].num_envs
   with processes.lost_peers():
-    log(f"{', '.join(names)}: compiling the training program ...", flush=True)
+    log(f"{', '.join(names)}: compiling the training program ...")
     t = time.monotonic()
     start, states = _restore(trainer, names, ckpts, plan.seed, log)
     if start >= spec.steps:
-      log(f"{', '.join(names)}: already trained to step {start}, the run's end", flush=True)
+      log(f"{', '.join(names)}: already trained to step {start}, the run's end")
       return
     cached = compile_chunk(trainer, states, start)
     log(f"{', '.join(names)}: compiled in {time.monotonic() - t:.0f} s"
-        + (" (from the compilation cache)" if cached else ""), flush=True)
+        + (" (from the compilation cache)" if cached else ""))
     interrupts.check()
     if start:
       log(f"{', '.join(names)}: resumed from step {start}")
@@ -301,7 +301,7 @@ def _train(plan: Plan, names, trainer, ckpts, outputs, clock: Clock, log):
       timing.chunk_done(clock, spec.chunk * trainer.num_lanes * num_envs)
       pace = timing.pace_line(plan, names, t0)
       if pace:
-        log(pace, flush=True)
+        log(pace)
       interrupts.check()
       yield from results
 

@@ -96,12 +96,11 @@ class JsonLines:
     pass
 
 
-def log_line(*parts, flush: bool = False) -> None:
-  """``print``, above the progress bar when one is drawn (``tqdm.write``)."""
+def log_line(*parts, **_) -> None:
+  """``print`` (flushed), above the progress bar when one is drawn (``tqdm.write``)."""
   from tqdm import tqdm
   tqdm.write(" ".join(str(p) for p in parts))
-  if flush:
-    sys.stdout.flush()
+  sys.stdout.flush()
 
 
 def scalars(result) -> dict:
