@@ -368,6 +368,7 @@ def test_the_gif_has_a_key_for_its_marks(tmp_path):
   import matplotlib.pyplot as plt
   fig, ax = plt.subplots()
   labels = render.key(ax)
-  assert labels == ["robot", "its path", "Middle's goal", "target, its radius", "block", "chasm", "wall"]
+  assert labels == ["robot", "its path", "Middle's goal", "target, its radius", "block", "chasm",
+                    "wall"]
   assert [t.get_text() for t in ax.get_legend().get_texts()] == labels
   plt.close(fig)

@@ -163,9 +163,10 @@ class WandB:
   """Weights & Biases: one W&B run per method (variant) in ``project``, grouped by the run
   folder, with the method's config and the run's size as its config, and per chunk the
   TensorBoard sink's scalars (``scalars``) at the env step. With ``WANDB_MODE=offline`` (no
-  account, no network) it writes ``OUT/wandb/offline-run-*`` only (``wandb sync`` uploads it later). A
-  resumed run continues the same W&B runs (their ids in ``OUT/wandb/ids.json``); W&B keeps the
-  first value logged at a step, so chunks redone after a resume do not replace theirs."""
+  account, no network) it writes ``OUT/wandb/offline-run-*`` only (``wandb sync`` uploads
+  them). A resumed run continues the same W&B runs (their ids in ``OUT/wandb/ids.json``); W&B
+  drops a value logged at a step it has passed, so chunks redone after a resume keep the
+  values first logged for them (metrics.csv is the record that a resume makes exact)."""
 
   def __init__(self, plan, project: str):
     import wandb  # the [wandb] extra (check_available)
