@@ -75,10 +75,6 @@ def make_parser(task: str) -> argparse.ArgumentParser:
       f"exit codes: 0 done; 1 failed, interrupted (Ctrl-C, SIGTERM) or a lost process; 2 bad "
       f"input; 3 stopped by --time-limit. docs/experiments.md has the rest."))
 
-  def size(name):
-    a, b = getattr(paper, name), getattr(quick, name)
-    return f"default: {a}" + ("" if a == b else f"; --preset quick: {b}")
-
   p.add_argument("--method", nargs="+", default=["ours"], choices=methods.METHODS,
                  metavar="METHOD",
                  help=f"one or more of {', '.join(methods.METHODS)}, into one --out: those that "
@@ -95,17 +91,7 @@ def make_parser(task: str) -> argparse.ArgumentParser:
                       f"{quick.seeds} seed{'s' * (quick.seeds > 1)} x {quick.steps:,} steps, "
                       f"the whole pipeline in "
                       f"minutes on a CPU (default: paper)")
-  p.add_argument("--seeds", type=int, default=None, metavar="N",
-                 help=f"seeds, vmapped ({size('seeds')})")
-  p.add_argument("--steps", type=int, default=None, metavar="N",
-                 help=f"vector env steps per seed ({size('steps')})")
-  p.add_argument("--chunk", type=int, default=None, metavar="N",
-                 help=f"steps per jitted call and metrics row ({size('chunk')})")
-  p.add_argument("--checkpoint-every", type=int, default=None, metavar="N",
-                 help=f"steps between checkpoints, a multiple of --chunk "
-                      f"({size('checkpoint_every')})")
-  p.add_argument("--episode-length", type=int, default=None, metavar="N",
-                 help=f"env steps per episode ({size('episode_length')})")
+  _add_size_flags(p, paper, quick)
   p.add_argument("--envs-per-seed", type=int, default=None, metavar="E",
                  help="E envs per seed with the preset's schedule and gradient samples per env "
                       "step (methods.widen; --steps etc. then count vector steps of E envs; "
@@ -121,6 +107,25 @@ def make_parser(task: str) -> argparse.ArgumentParser:
   _add_process_flags(p)
   add_field_flags(p, task)
   return p
+
+
+def _add_size_flags(p: argparse.ArgumentParser, paper, quick) -> None:
+  """The run's size, each flag's default the preset's (``methods.RunSpec``)."""
+  def size(name):
+    a, b = getattr(paper, name), getattr(quick, name)
+    return f"default: {a}" + ("" if a == b else f"; --preset quick: {b}")
+
+  p.add_argument("--seeds", type=int, default=None, metavar="N",
+                 help=f"seeds, vmapped ({size('seeds')})")
+  p.add_argument("--steps", type=int, default=None, metavar="N",
+                 help=f"vector env steps per seed ({size('steps')})")
+  p.add_argument("--chunk", type=int, default=None, metavar="N",
+                 help=f"steps per jitted call and metrics row ({size('chunk')})")
+  p.add_argument("--checkpoint-every", type=int, default=None, metavar="N",
+                 help=f"steps between checkpoints, a multiple of --chunk "
+                      f"({size('checkpoint_every')})")
+  p.add_argument("--episode-length", type=int, default=None, metavar="N",
+                 help=f"env steps per episode ({size('episode_length')})")
 
 
 class _Formatter(argparse.RawDescriptionHelpFormatter):
