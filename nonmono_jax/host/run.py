@@ -267,21 +267,7 @@ def _train(plan: Plan, names, trainer, ckpts, outputs, clock: Clock, log):
   multi-process run raises ``processes.ProcessLost``)."""
   spec, num_envs = plan.spec, plan.configs[names[0]].num_envs
   with processes.lost_peers():
-    log(f"{', '.join(names)}: compiling the training program ...")
-    t = time.monotonic()
-    start, states = _restore(trainer, names, ckpts, plan.seed, log)
-    if start >= spec.steps:
-      log(f"{', '.join(names)}: already trained to step {start}, the run's end")
-      return
-    cached = compile_chunk(trainer, states, start)
-    log(f"{', '.join(names)}: compiled in {time.monotonic() - t:.0f} s"
-        + (" (from the compilation cache)" if cached else ""))
-    interrupts.check()
-    if start:
-      log(f"{', '.join(names)}: resumed from step {start}")
-    for name in names:
-      for sink in outputs:
-        sink.begin(name, start * num_envs)
+    start, states = _start(plan, names, trainer, ckpts, outputs, log)
     timing = _Timing()
     for t0 in range(start, spec.steps, spec.chunk):
       # At least one chunk per process: a limit shorter than start-up + a chunk still advances.
@@ -304,6 +290,30 @@ def _train(plan: Plan, names, trainer, ckpts, outputs, clock: Clock, log):
         log(pace)
       interrupts.check()
       yield from results
+
+
+def _start(plan: Plan, names, trainer, ckpts, outputs, log):
+  """(step, states) to train from: restored (``_restore``), every sink begun there, and the
+  chunk compiled ahead of its first call, saying so and how long it took (init, restore and
+  compile); nothing compiled when the run is already at its end."""
+  label, spec = ", ".join(names), plan.spec
+  if not all((c.latest_step() or 0) >= spec.steps for c in ckpts):
+    log(f"{label}: compiling the training program ...")
+  t = time.monotonic()
+  start, states = _restore(trainer, names, ckpts, plan.seed, log)
+  if start:
+    log(f"{label}: resumed from step {start}")
+  for name in names:
+    for sink in outputs:
+      sink.begin(name, start * plan.configs[name].num_envs)
+  if start >= spec.steps:
+    log(f"{label}: already trained to step {start}, the run's end")
+    return start, states
+  cached = compile_chunk(trainer, states, start)
+  log(f"{label}: compiled in {duration(time.monotonic() - t)}"
+      + (" (from the compilation cache)" if cached else ""))
+  interrupts.check()
+  return start, states
 
 
 def _restore(trainer, names, ckpts, seed: int, log):
