@@ -12,16 +12,19 @@ another; all into one folder (``nonmono_jax.host.io``): ``config.json``,
 ``metrics.csv`` (one row per method, seed and chunk), ``metrics.jsonl`` (every metric) and
 ``checkpoints/<method>/``. The run itself is the library ``nonmono_jax.host.run`` (the plan, from
 the presets or from ``config.json``; the folder; the training loop; the output sinks): this
-module turns flags into a plan and outcomes into exit codes.
+module turns flags into a plan and outcomes into exit codes. The flags themselves are
+``experiments/flags.py`` (no JAX: ``experiments/launch.py`` answers ``--help`` and bad flags
+before this module loads).
 
 - Every value is checked before anything compiles or the folder is created: the configs'
   own ranges, ``nonmono_jax.core.validation`` (finite floats, int32 ints, full dotted names) and
   the memory the run needs (``jax.eval_shape`` of the trainer's init) against what is free.
 - One process writes a run folder at a time (``nonmono_jax.host.runlock``, held for the whole run).
 - ``--resume`` restores the newest checkpoint that restores, and accepts only the flags that
-  do not change the run (``--time-limit``, ``--no-progress``, ``--tensorboard``).
+  do not change the run (``--time-limit``, ``--no-progress``, ``--tensorboard``, ``--wandb``).
 - Every failure is one line; exit codes: 0 done, 1 failed run (NaN or Inf in a learner,
-  a full disk, any other error: the last good checkpoint is kept), 2 bad input (a value, a
+  a full disk, Ctrl-C or SIGTERM (``nonmono_jax.host.interrupts``), any other error: the last
+  good checkpoint is kept), 2 bad input (a value, a
   folder, a broken ``config.json`` / ``metrics.csv`` / checkpoint, a folder in use),
   3 stopped for ``--time-limit`` (each process runs at least one chunk first).
 """
