@@ -5,56 +5,30 @@
     state = jax.jit(env.reset)(jax.random.PRNGKey(0))
     state = jax.jit(env.step)(state, jp.zeros(env.action_size))
     state.success, state.distance, env.target, env.success_radius, env.mj_model
+
+The package loads nothing heavy until it is used: ``envs.make`` and the names below import the
+robots (JAX, MuJoCo, MJX) on first use, and a light module (``envs.physics``, ``envs.tasks``)
+imports alone, so that the experiment command answers ``--help`` without JAX.
 """
 
 from __future__ import annotations
 
-import contextlib
-import dataclasses
-import io
+import importlib
 
-# mujoco.mjx prints a line about its optional warp backend on import; keep it quiet.
-with contextlib.redirect_stdout(io.StringIO()):
-  from mujoco import mjx as _mjx  # noqa: F401
-
-from envs import tasks
-from envs.ant_maze import AntConfig, AntMazeEnv
-from envs.base import EnvConfig, MazeEnv, MazeState
-from envs.point_maze import PointConfig, PointMazeEnv
-
-_ROBOTS = {"Ant": (AntMazeEnv, AntConfig), "Point": (PointMazeEnv, PointConfig)}
-NAMES = tuple(f"{robot}{task}" for robot in _ROBOTS for task in tasks.TASKS)
+_FROM = {"make": "registry", "NAMES": "registry", "valid_overrides": "registry",
+         "has_physics": "registry", "AntMazeEnv": "ant_maze", "AntConfig": "ant_maze",
+         "PointMazeEnv": "point_maze", "PointConfig": "point_maze", "EnvConfig": "base",
+         "MazeEnv": "base", "MazeState": "base"}
+__all__ = [*_FROM, "tasks"]
 
 
-def valid_overrides(name: str) -> tuple[str, ...]:
-  """The keyword overrides ``make`` accepts for an env name."""
-  _, config_cls = _ROBOTS[_split(name)[0]]
-  return tuple(f.name for f in dataclasses.fields(config_cls))
-
-
-def _split(name: str) -> tuple[str, str]:
-  for robot in _ROBOTS:
-    if name.startswith(robot) and name[len(robot):] in tasks.TASKS:
-      return robot, name[len(robot):]
-  raise ValueError(f"unknown env {name!r}; valid names: {', '.join(NAMES)}")
-
-
-def has_physics(name: str) -> bool:
-  """Whether the env of ``name`` has a physics choice (``AntConfig.physics``: the ant on MuJoCo
-  C or MJX); the point robot's physics is its own pure JAX."""
-  return "physics" in valid_overrides(name)
-
-
-def make(name: str, **overrides):
-  """Build an env by name (``envs.NAMES``) with config overrides (``valid_overrides``)."""
-  robot, task = _split(name)
-  env_cls, config_cls = _ROBOTS[robot]
-  valid = valid_overrides(name)
-  unknown = sorted(set(overrides) - set(valid))
-  if unknown:
-    raise ValueError(f"unknown override(s) {unknown} for {name}; valid: {', '.join(valid)}")
-  return env_cls(tasks.TASKS[task], config_cls(**overrides))
-
-
-__all__ = ["make", "NAMES", "valid_overrides", "has_physics", "AntMazeEnv", "PointMazeEnv",
-           "AntConfig", "PointConfig", "EnvConfig", "MazeEnv", "MazeState", "tasks"]
+def __getattr__(name: str):
+  """A registry name from its module, or a submodule (``envs.tasks``), imported on first use."""
+  if name not in _FROM:
+    try:
+      return importlib.import_module(f"envs.{name}")
+    except ModuleNotFoundError:
+      raise AttributeError(f"module 'envs' has no attribute {name!r}") from None
+  value = getattr(importlib.import_module(f"envs.{_FROM[name]}"), name)
+  globals()[name] = value
+  return value

@@ -23,6 +23,7 @@ from __future__ import annotations
 import dataclasses
 import warnings
 
+from envs import quiet  # noqa: F401 - before brax: mujoco.mjx's import prints nothing
 import jax
 import jax.numpy as jp
 import mujoco
@@ -31,11 +32,11 @@ from brax.io import mjcf
 
 from envs import ant, base, c_physics, maze, tasks
 from envs import contacts as contacts_lib
+from envs.physics import PHYSICS
 
 N_FRAMES = 5
 OBS_SIZE = 30
 _ANT_NQ, _ANT_NV = 15, 14
-PHYSICS = ("auto", "c", "mjx")
 
 
 def default_physics() -> str:

@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Protocol, runtime_checkable
 
+from envs import quiet  # noqa: F401 - before brax: mujoco.mjx's import prints nothing
 import jax
 import jax.numpy as jp
 import mujoco

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import dataclasses
 
+from envs import quiet  # noqa: F401 - before brax: mujoco.mjx's import prints nothing
 import jax
 import jax.numpy as jp
 import mujoco

@@ -3,17 +3,11 @@ command as ``python -m experiments.<task>``; a task added to the registry runs h
 module of its own.
 
     python -m experiments PointMaze --method ours hiro --preset quick
-    python -m experiments AntPush --help
+    python -m experiments antpush --help          # a task's name in any case
 """
 
-import sys
-
-from experiments import cli
-from nonmono_jax.host import methods
-
 if __name__ == "__main__":
-  if len(sys.argv) < 2 or sys.argv[1] not in methods.TASKS:
-    print(f"usage: python -m experiments TASK [flags]; TASK one of {', '.join(methods.TASKS)}",
-          file=sys.stderr)
-    sys.exit(2)
-  sys.exit(cli.main(sys.argv[1], sys.argv[2:]))
+  from nonmono_jax.host import interrupts
+  interrupts.install()  # first: a Ctrl-C at any moment of start-up is one line
+  from experiments import launch
+  launch.main_any_task()

@@ -12,16 +12,19 @@ another; all into one folder (``nonmono_jax.host.io``): ``config.json``,
 ``metrics.csv`` (one row per method, seed and chunk), ``metrics.jsonl`` (every metric) and
 ``checkpoints/<method>/``. The run itself is the library ``nonmono_jax.host.run`` (the plan, from
 the presets or from ``config.json``; the folder; the training loop; the output sinks): this
-module turns flags into a plan and outcomes into exit codes.
+module turns flags into a plan and outcomes into exit codes. The flags themselves are
+``experiments/flags.py`` (no JAX: ``experiments/launch.py`` answers ``--help`` and bad flags
+before this module loads).
 
 - Every value is checked before anything compiles or the folder is created: the configs'
   own ranges, ``nonmono_jax.core.validation`` (finite floats, int32 ints, full dotted names) and
   the memory the run needs (``jax.eval_shape`` of the trainer's init) against what is free.
 - One process writes a run folder at a time (``nonmono_jax.host.runlock``, held for the whole run).
 - ``--resume`` restores the newest checkpoint that restores, and accepts only the flags that
-  do not change the run (``--time-limit``, ``--no-progress``, ``--tensorboard``).
+  do not change the run (``--time-limit``, ``--no-progress``, ``--tensorboard``, ``--wandb``).
 - Every failure is one line; exit codes: 0 done, 1 failed run (NaN or Inf in a learner,
-  a full disk, any other error: the last good checkpoint is kept), 2 bad input (a value, a
+  a full disk, Ctrl-C or SIGTERM (``nonmono_jax.host.interrupts``), any other error: the last
+  good checkpoint is kept), 2 bad input (a value, a
   folder, a broken ``config.json`` / ``metrics.csv`` / checkpoint, a folder in use),
   3 stopped for ``--time-limit`` (each process runs at least one chunk first).
 """
@@ -29,167 +32,28 @@ module turns flags into a plan and outcomes into exit codes.
 from __future__ import annotations
 
 import argparse
-import collections.abc
-import dataclasses
 import errno
-import importlib.util
 import math
 import os
 import sys
-import typing
 
 from experiments import cores
 
 cores.share(sys.argv[1:])  # before JAX loads: this process's share of a machine it shares
 
-import envs  # noqa: E402
-from envs import ant_maze  # noqa: E402
-from envs import contacts as contacts_lib  # noqa: E402
-from nonmono_jax.core import config as config_lib  # noqa: E402
-from nonmono_jax.host import io, methods, plan as plan_lib, processes, run, runlock, sinks  # noqa: E402
+from experiments.flags import EXIT_BAD_INPUT, EXIT_FAILED, EXIT_TIME_LIMIT  # noqa: E402,F401
+from experiments.flags import make_parser, parse_sweep  # noqa: E402,F401 - the command's flags
+from nonmono_jax.host import interrupts  # noqa: E402
+from nonmono_jax.host import io, plan as plan_lib, processes, run, runlock, sinks  # noqa: E402
 from nonmono_jax.host import programs as programs_lib  # noqa: E402
 from nonmono_jax.host.methods import task_of_module  # noqa: E402,F401 - for experiments/<task>.py
 from nonmono_jax.host.plan import Plan  # noqa: E402,F401 - for callers of plan_from_args
 from nonmono_jax.host.run import Clock, NonFinite, TimeLimit  # noqa: E402,F401 - the run's, in tests
 
-EXIT_FAILED, EXIT_BAD_INPUT, EXIT_TIME_LIMIT = 1, 2, 3
 EXIT_NON_FINITE = EXIT_FAILED
 # What --resume may change: how this process runs, not what the run is.
-RESUME_ALLOWED = ("resume", "time_limit", "no_progress", "tensorboard", "distributed",
+RESUME_ALLOWED = ("resume", "time_limit", "no_progress", "tensorboard", "wandb", "distributed",
                   "coordinator", "num_processes", "process_id")
-
-
-# --- config fields as command-line flags ------------------------------------------------------
-
-def _bool(text: str) -> bool:
-  if text.lower() in ("1", "true", "yes", "on"):
-    return True
-  if text.lower() in ("0", "false", "no", "off"):
-    return False
-  raise argparse.ArgumentTypeError(f"expected true or false, got {text!r}")
-
-
-def _fields(cls, prefix=""):
-  """(dotted name, type) of every leaf field of a config dataclass, recursively."""
-  hints = typing.get_type_hints(cls)
-  for f in dataclasses.fields(cls):
-    t = hints[f.name]
-    if dataclasses.is_dataclass(t):
-      yield from _fields(t, prefix + f.name + ".")
-    else:
-      yield prefix + f.name, t
-
-
-def _add_field_flags(parser: argparse.ArgumentParser, example: config_lib.AgentConfig):
-  group = parser.add_argument_group(
-      "agent config fields (defaults: this task's preset for ours; each method's preset may "
-      "differ, see nonmono_jax/host/methods.py)")
-  for name, t in _fields(config_lib.AgentConfig):
-    default = config_lib.get(example, name)
-    kwargs = dict(dest="field:" + name, default=argparse.SUPPRESS,
-                  help=f"(default: {default})")
-    origin = typing.get_origin(t)
-    if t is bool:
-      kwargs.update(type=_bool, metavar="BOOL")
-    elif origin in (tuple, list, collections.abc.Sequence):
-      elem = typing.get_args(t)[0]
-      kwargs.update(type=elem, nargs="+")
-    elif t in (int, float, str):
-      kwargs.update(type=t)
-    else:
-      continue
-    group.add_argument(f"--{name}", **kwargs)
-
-
-# --- the parser --------------------------------------------------------------------------------
-
-class _Parser(argparse.ArgumentParser):
-  """argparse with every error on one line (no usage block): ``prog: error: message``."""
-
-  def error(self, message):
-    self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {message}\n")
-
-
-def _command(task: str) -> str:
-  """The command that runs ``task``: its module, or the registry's generic one."""
-  module = f"experiments.{task.lower()}"
-  return (f"python -m {module}" if importlib.util.find_spec(module) is not None
-          else f"python -m experiments {task}")
-
-
-def make_parser(task: str) -> argparse.ArgumentParser:
-  p = _Parser(
-      prog=_command(task),
-      description=f"Train methods of Kim et al. (2023) on {task}; seeds are vmapped.",
-      formatter_class=argparse.ArgumentDefaultsHelpFormatter)
-  p.add_argument("--method", nargs="+", default=["ours"], choices=methods.METHODS,
-                 help="one or more into --out: those that differ only in traced numbers "
-                      "(ours and its ablations) as lanes of one program, the others one after "
-                      "another")
-  p.add_argument("--sweep", nargs="+", action="append", default=None,
-                 metavar="FIELD=VALUE [VALUE ...]",
-                 help="variants of each method, one per value of a dotted config field (a "
-                      "tuple's entries joined by commas: --sweep top.alpha=0,0.4,0.7 0,0.2,0.35); "
-                      "given twice, the grid of both; named method+field=value")
-  p.add_argument("--preset", default="paper", choices=methods.PRESETS,
-                 help="paper: the paper's numbers (docs/spec.md); quick: minutes on a CPU")
-  p.add_argument("--seeds", type=int, default=None, help="vmapped seeds (default: preset)")
-  p.add_argument("--steps", type=int, default=None,
-                 help="vector env steps per seed (default: preset)")
-  p.add_argument("--chunk", type=int, default=None,
-                 help="steps per jitted call and metrics row (default: preset)")
-  p.add_argument("--checkpoint-every", type=int, default=None,
-                 help="steps between checkpoints, a multiple of --chunk (default: preset)")
-  p.add_argument("--episode-length", type=int, default=None, help="(default: preset)")
-  p.add_argument("--envs-per-seed", type=int, default=None, metavar="E",
-                 help="E envs per seed with the preset's schedule and gradient samples per env "
-                      "step (methods.widen; --steps etc. then count vector steps of E envs)")
-  p.add_argument("--grad-steps", type=int, default=None, metavar="U",
-                 help="with --envs-per-seed: TD3 updates per vector step, each of batch x E/U "
-                      "(default E: the paper's updates exactly)")
-  p.add_argument("--seed", type=int, default=0, help="PRNG seed of the run")
-  p.add_argument("--out", default=None, help="output folder (default: runs/<task>-<time>)")
-  p.add_argument("--resume", default=None, metavar="DIR",
-                 help="continue the run in DIR with its saved configuration")
-  p.add_argument("--time-limit", type=float, default=None, metavar="SECONDS",
-                 help="stop, checkpointed, before a chunk that would end past this many seconds "
-                      f"of wall time; exit code {EXIT_TIME_LIMIT}, continue with --resume")
-  p.add_argument("--cpu-devices", type=int, default=None, metavar="N",
-                 help="on the CPU, split the lanes over N devices, e.g. one per core (about "
-                      "1.6-2.5x faster at 16 seeds on 2 cores; --seeds a multiple of N; not "
-                      "bit-identical to 1 device); --resume uses the run's count")
-  if envs.has_physics(task):
-    p.add_argument("--physics", default="auto", choices=ant_maze.PHYSICS,
-                   help="the ant's physics: c, MuJoCo's C engine called from inside the jitted "
-                        "step (10-25x MJX on a CPU); mjx, the MJX pipeline (for accelerators); "
-                        "auto: c on a CPU, mjx on an accelerator; --resume keeps the run's")
-    p.add_argument("--contacts", default=None, choices=contacts_lib.CONTACTS,
-                   help="the ant's engine settings: mujoco200 (default), those that make "
-                        "MuJoCo 3 move the ant and blocks as MuJoCo 2.x and MuJoCo 2.0's "
-                        "capsule inertia, what the paper's code ran; mujoco2, without the "
-                        "inertia (the settings checked against MuJoCo 2.3.7); mujoco3, MuJoCo "
-                        "3's own (docs/environments.md); --resume keeps the run's")
-  _add_process_flags(p)
-  p.add_argument("--no-progress", action="store_true", help="no progress bar")
-  p.add_argument("--tensorboard", action="store_true",
-                 help="also write TensorBoard event files to OUT/tensorboard/<method>")
-  _add_field_flags(p, methods.make_config("ours", task))
-  return p
-
-
-def _add_process_flags(p: argparse.ArgumentParser) -> None:
-  """--distributed and the three flags that say where the processes are."""
-  p.add_argument("--distributed", action="store_true",
-                 help="one run over several processes (JAX's multi-process runtime): the "
-                      "lanes are split over every process's devices, process 0 writes the run "
-                      "folder (which all must see); on SLURM or Open MPI the processes find "
-                      "each other, elsewhere give the three flags below (docs/cluster.md)")
-  p.add_argument("--coordinator", default=None, metavar="HOST:PORT",
-                 help="with --distributed: process 0's address and a free port")
-  p.add_argument("--num-processes", type=int, default=None, metavar="N",
-                 help="with --distributed: the run's process count")
-  p.add_argument("--process-id", type=int, default=None, metavar="I",
-                 help="with --distributed: this process's index, 0 to N - 1")
 
 
 def plan_from_args(task: str, args: argparse.Namespace) -> plan_lib.Plan:
@@ -203,34 +67,6 @@ def plan_from_args(task: str, args: argparse.Namespace) -> plan_lib.Plan:
       physics=getattr(args, "physics", None), contacts=getattr(args, "contacts", None))
 
 
-def parse_sweep(given) -> dict:
-  """``[["top.alpha=0,0.4,0.7", "0,0.2,0.35"], ...]`` -> {"top.alpha": [(0, 0.4, 0.7), ...]};
-  each value parsed by its field's type, as the field's own flag parses it."""
-  types = dict(_fields(config_lib.AgentConfig))
-  sweep = {}
-  for tokens in given or []:
-    path, sep, first = tokens[0].partition("=")
-    if not sep or not path:
-      raise ValueError(f"--sweep takes FIELD=VALUE [VALUE ...], got {' '.join(tokens)}")
-    if path not in types:
-      raise ValueError(f"--sweep {path}: not a config field with a value (see --help)")
-    if path in sweep:
-      raise ValueError(f"--sweep {path} is given twice")
-    try:
-      sweep[path] = [_typed(types[path], text) for text in [first] + tokens[1:]]
-    except (ValueError, argparse.ArgumentTypeError) as e:
-      raise ValueError(f"--sweep {path}: {e}") from None
-  return sweep
-
-
-def _typed(t, text: str):
-  """A field's value from text by its type: a sequence's entries joined by commas."""
-  if typing.get_origin(t) in (tuple, list, collections.abc.Sequence):
-    elem = typing.get_args(t)[0]
-    return tuple(elem(x) for x in text.split(","))
-  return _bool(text) if t is bool else t(text)
-
-
 # --- the command: checks, the run folder, the run ----------------------------------------------
 
 CACHE_DIR = os.path.join(os.path.expanduser("~"), ".cache", "nonmono-jax", "xla")
@@ -242,6 +78,9 @@ def main(task: str, argv=None) -> int:
   parser = make_parser(task)
   args = parser.parse_args(argv)
   try:
+    for flag in sinks.OPTIONAL:  # --tensorboard, --wandb: their packages, before anything runs
+      if getattr(args, flag):
+        sinks.check_available(flag)
     _use_cpu_devices(args)
     _join(args)
     plan = _plan(task, args, argv)
@@ -253,13 +92,26 @@ def main(task: str, argv=None) -> int:
     print(f"warning: {warning}", file=sys.stderr, flush=True)
   code = EXIT_BAD_INPUT
   try:
-    with run.open_folder(plan, resume=args.resume is not None):
-      code = _run(plan, args, programs)
+    # From the folder's opening, a Ctrl-C or SIGTERM is taken where nothing is half-written
+    # (nonmono_jax.host.interrupts); before it, it ends the command at once.
+    with interrupts.during_run(lambda exc: _stopped(plan, exc)):
+      try:
+        with run.open_folder(plan, resume=args.resume is not None):
+          code = _run(plan, args, programs)
+      except KeyboardInterrupt as e:  # as the folder opened, before the run began
+        interrupts.say(_stopped(plan, type(e)))
+        code = EXIT_FAILED
   except (run.BadFolder, runlock.Locked, io.MetricsError, io.CheckpointError) as e:
     parser.error(str(e))
   finally:
     processes.leave(code)
   return code
+
+
+def _stopped(plan: plan_lib.Plan, exc: type) -> str:
+  """The line of a run stopped by Ctrl-C or SIGTERM: what is saved, how to continue."""
+  return (f"error: {interrupts.describe(exc)}; {_saved(plan)}; continue with --resume "
+          f"{plan.out}")
 
 
 def _cache_compiled_programs() -> None:
@@ -303,22 +155,18 @@ def _plan(task: str, args: argparse.Namespace, argv) -> plan_lib.Plan:
     raise ValueError(f"--time-limit must be a positive number of seconds, got {limit}")
   if args.resume is None:
     plan = plan_from_args(task, args)
-    if os.path.lexists(plan.out) and processes.writer():  # process 0 creates it
-      if not os.path.isdir(plan.out):
-        raise ValueError(f"--out {plan.out} exists and is not a folder")
-      if set(os.listdir(plan.out)) - {runlock.NAME}:  # a lock alone: a start that failed
-        raise ValueError(f"--out {plan.out} exists and is not empty (use --resume {plan.out} "
-                         f"to continue it, or another --out)")
+    if processes.writer():  # process 0 creates it
+      run.check_new_out(plan.out)
     return plan
   if not args.resume:
     raise ValueError("--resume must name a run folder")
   given = sorted(_given_dests(task, argv) - set(RESUME_ALLOWED))
   if given:
-    flags = ", ".join("--" + (d[len("field:"):] if d.startswith("field:") else
+    named = ", ".join("--" + (d[len("field:"):] if d.startswith("field:") else
                               d.replace("_", "-")) for d in given)
-    raise ValueError(f"{flags} cannot change on --resume: the run's plan is "
+    raise ValueError(f"{named} cannot change on --resume: the run's plan is "
                      f"{os.path.join(args.resume, 'config.json')} (only --time-limit, "
-                     f"--no-progress and --tensorboard may be given)")
+                     f"--no-progress, --tensorboard and --wandb may be given)")
   return plan_lib.load_run(args.resume, task=task)
 
 
@@ -339,19 +187,17 @@ def _run(plan: plan_lib.Plan, args: argparse.Namespace, programs=None) -> int:
                sinks.Progress(plan, enabled=not args.no_progress)]
     if args.tensorboard:
       outputs.append(sinks.TensorBoard(plan.out))
-    log = print
-  physics = f", {plan.physics} physics" if plan.physics else ""
-  if plan.contacts is not None:
-    physics += f", {plan.contacts} contacts"
-  across = f", {processes.count()} processes" if processes.count() > 1 else ""
-  log(f"{plan.task}: {', '.join(plan.configs)} x {plan.spec.seeds} seeds x {plan.spec.steps} "
-      f"steps ({plan.preset}{physics}{across}) -> {plan.out}", flush=True)
+    if args.wandb:
+      outputs.append(sinks.WandB(plan, args.wandb))
+    log = sinks.log_line
+  for line in start_lines(plan, resumed=args.resume is not None):
+    log(line, flush=True)
   clock = Clock.starting_now(args.time_limit,
                              os.path.join(plan.out, "timing.json") if writer else None)
   processes.watch(lambda why: print(f"error: ProcessLost: {why}; {_saved(plan)}; continue "
                                     f"with --resume {plan.out}", file=sys.stderr, flush=True))
   try:
-    with run.remembering_ctrl_c(), sinks.closing(outputs):
+    with sinks.closing(outputs):
       run.run_plan(plan, outputs, clock, log, programs)
   except NonFinite as e:
     print(f"error: {e}", file=sys.stderr)
@@ -361,7 +207,10 @@ def _run(plan: plan_lib.Plan, args: argparse.Namespace, programs=None) -> int:
     return EXIT_TIME_LIMIT
   except (io.MetricsError, io.CheckpointError):
     raise
-  except (Exception, KeyboardInterrupt) as e:  # noqa: BLE001 - one line, not a traceback
+  except KeyboardInterrupt as e:  # Ctrl-C or SIGTERM, taken where nothing is half-written
+    interrupts.say(_stopped(plan, type(e)))
+    return EXIT_FAILED
+  except Exception as e:  # noqa: BLE001 - one line, not a traceback
     if os.environ.get("NONMONO_TRACEBACK"):
       raise
     print(f"error: {_describe(e)}; {_saved(plan)}; continue with --resume {plan.out} "
@@ -371,12 +220,35 @@ def _run(plan: plan_lib.Plan, args: argparse.Namespace, programs=None) -> int:
   return 0
 
 
+def start_lines(plan: plan_lib.Plan, resumed: bool = False) -> list[str]:
+  """What the run is: its task, variants, seeds, steps, env steps in all, preset, physics and
+  folder; for a new run at the paper's size, that it is long and how to get a short one."""
+  spec = plan.spec
+  env_steps = sum(c.num_envs for c in plan.configs.values()) * spec.seeds * spec.steps
+  physics = f", {plan.physics} physics" if plan.physics else ""
+  if plan.contacts is not None:
+    physics += f", {plan.contacts} contacts"
+  across = f", {processes.count()} processes" if processes.count() > 1 else ""
+  lines = [f"{plan.task}: {', '.join(plan.configs)} x {spec.seeds} seeds x {spec.steps} steps "
+           f"= {_count(env_steps)} env steps ({plan.preset} preset{physics}{across}) -> "
+           f"{plan.out}"]
+  if plan.preset == "paper" and not resumed:
+    lines.append(f"{plan.task}: the paper's size, a long run (the time it takes here is "
+                 f"estimated after its first chunk); --preset quick runs the whole pipeline "
+                 f"in minutes")
+  return lines
+
+
+def _count(n: int) -> str:
+  """1,234 as 1.2K, 15,750,000 as 15.8M."""
+  for size, unit in ((1e9, "G"), (1e6, "M"), (1e3, "K")):
+    if n >= size:
+      return f"{n / size:.3g}{unit}"
+  return str(n)
+
+
 def _describe(e: BaseException) -> str:
   """One line for an exception: a full disk said as such, else its type and first line."""
-  if isinstance(e, run.Terminated):
-    return "terminated (SIGTERM)"
-  if isinstance(e, KeyboardInterrupt):
-    return "interrupted"
   chain = [e]
   while chain[-1].__cause__ or chain[-1].__context__:
     chain.append(chain[-1].__cause__ or chain[-1].__context__)

@@ -2,16 +2,19 @@
 
 Per task found in the folders' ``metrics.csv`` files:
 
-- ``<task>_success``: S_E (evaluation success rate of Middle TD3 + Low TD3) and the evaluation
-  return against env steps, one line per method: the mean over seeds with a band of one
-  standard deviation (the paper's success-rate and reward figures);
+- ``<task>_success``: S_E (the success rate in evaluation, of Middle TD3 + Low TD3) and the
+  evaluation return against env steps, one line per method: the mean over seeds with its
+  pointwise 95 % stratified-bootstrap interval (the paper's success-rate and reward figures);
 - ``<task>_modes``: for every method, the cumulative Middle decisions made in each mode (TD3 =
   exploitation, PPO and RANDOM = exploration; one decision per c = 10 env steps, the unit of
-  the paper's mode counts) against env steps (runs from before these columns: env steps);
+  the paper's mode counts) against env steps (runs from before these columns: env steps), the
+  mean over seeds with its 95 % interval, each mode in its own colour and line style (a mode
+  never chosen is named in its panel, so a line under another hides nothing);
 - ``<task>_iqm``: S_E against env steps as the interquartile mean (IQM) over seeds with
   pointwise 95 % stratified-bootstrap intervals, final S_E as IQM with its interval per
   method, and the probability of improvement P(ours > method) on final S_E with its interval
-  (``experiments.stats``, rliable's estimators);
+  (``experiments.stats``, rliable's estimators); an interval that spans nearly all of [0, 1]
+  (``UNINFORMATIVE``: too few seeds for it to say anything) is marked so;
 - ``<task>_seeds``: S_E of every seed, one panel per method: what the IQM hides when few
   seeds learn (with 6 seeds the IQM trims the best and the worst seed);
 - ``<task>_ablation``: S_E of ours and its ablations (IQM with 95 % intervals), where the
@@ -52,6 +55,22 @@ STEPS_LABEL = "env steps"  # the x label of every step axis; `_finish` formats t
 AXES = {"env": STEPS_LABEL, "paper": "env steps after the warm-up (the paper's axis)"}
 SEEDS_COLUMNS = 4  # panels a row of the per-seed figure
 SEEDS_LEGEND = 12  # seeds a panel of it names in a legend, at most
+MODE_STYLES = {"TD3": "-", "PPO": "--", "RANDOM": ":"}  # overlapping mode lines stay visible
+SUCCESS = "success rate"  # S_E, as a figure's reader calls it (evaluation episodes' success)
+INTERVAL = "95% CI"  # every band and bar is a 95 % stratified-bootstrap interval (stats.SIZE)
+# A 95 % interval at least this wide on [0, 1] tells nothing: with few seeds (4 seeds that end
+# at 0 or 1) the bootstrap's resamples reach both ends. Marked in the figures and summary.md.
+UNINFORMATIVE = 0.9
+
+
+def seeds_text(n: int) -> str:
+  """``1 seed``, ``4 seeds``."""
+  return f"{n} seed{'' if n == 1 else 's'}"
+
+
+def uninformative(estimate) -> bool:
+  """Whether an interval estimate (point, lower, upper) on [0, 1] is too wide to say anything."""
+  return estimate is not None and float(estimate[2]) - float(estimate[1]) >= UNINFORMATIVE
 
 
 def label(variant: str) -> str:
@@ -228,12 +247,13 @@ def seed_ids(rows, task, method, column="eval_success") -> list[str]:
   return _seed_table(rows, task, method, column)[1]
 
 
-def curves(rows, task, method, column):
-  """(steps, mean, std, seeds) over seeds of ``column``; steps where every seed has a value."""
+def curves(rows, task, method, column, reps: int = stats.REPS):
+  """(steps, mean, lower, upper, seeds) over seeds of ``column``: the mean and its pointwise
+  95 % stratified-bootstrap interval, at the steps where every seed has a value."""
   steps, values = per_seed(rows, task, method, column)
   if not len(steps):
-    return np.zeros(0), np.zeros(0), np.zeros(0), 0
-  return steps, values.mean(0), values.std(0), len(values)
+    return np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0), 0
+  return (steps, *stats.mean_curve(values, reps=reps), len(values))
 
 
 def _at_end(rows, task, method, column, reps):
@@ -364,8 +384,22 @@ def tables(rows, summary_rows=None) -> str:
   """``markdown_table`` of the summary, then ``pairs_table`` where there are pairs, then
   ``seeds_table``: what ``summary.md`` holds after its note and ``--table`` prints."""
   pairs = pairs_table(comparisons(rows))
-  return (markdown_table(summary(rows) if summary_rows is None else summary_rows)
+  summary_rows = summary(rows) if summary_rows is None else summary_rows
+  note = too_few_note(summary_rows)
+  return (markdown_table(summary_rows) + (f"\n\n{note}" if note else "")
           + (f"\n\n{pairs}" if pairs else "") + f"\n\n{seeds_table(rows)}")
+
+
+def too_few_note(summary_rows) -> str:
+  """A note naming the methods whose final S_E interval spans nearly all of [0, 1]
+  (``uninformative``): too few seeds for the interval to say anything (empty if none)."""
+  wide = [f"{r['task']} {label(r['method'])} ({seeds_text(r['seeds'])}: "
+          f"[{float(r['final_s_e'][1]):.2f}, {float(r['final_s_e'][2]):.2f}])"
+          for r in summary_rows if uninformative(r["final_s_e"])]
+  if not wide:
+    return ""
+  return (f"Too few seeds for an interval: the 95% CI of the final S_E spans nearly all of "
+          f"[0, 1] for {', '.join(wide)}; it tells nothing about them (more seeds narrow it).")
 
 
 def seeds_table(rows) -> str:
@@ -398,9 +432,20 @@ def pairs_table(comparison_rows) -> str:
   return "\n".join(lines)
 
 
-def _band(ax, steps, mean, std, label, color=None):
-  line, = ax.plot(steps, mean, label=label, color=color, lw=1.6)
-  ax.fill_between(steps, mean - std, mean + std, color=line.get_color(), alpha=0.2, lw=0)
+def _band(ax, curve, label, color=None, bounds=(-np.inf, np.inf), **style):
+  """A curve (steps, point, lower, upper, ...) and its interval, the band clipped to
+  ``bounds`` (a success rate's: [0, 1])."""
+  steps, point, lower, upper = curve[:4]
+  line, = ax.plot(steps, point, label=label, color=color, lw=1.6, **style)
+  ax.fill_between(steps, np.clip(lower, *bounds), np.clip(upper, *bounds),
+                  color=line.get_color(), alpha=0.2, lw=0)
+
+
+def _legend_below(fig, axes, ncol: int):
+  """One legend for the figure, below its panels, where it covers no curve."""
+  handles, labels = axes[0].get_legend_handles_labels()
+  fig.legend(handles, labels, loc="lower center", ncol=max(min(ncol, len(labels)), 1),
+             fontsize=8, frameon=False, bbox_to_anchor=(0.5, 0.0))
 
 
 def _finish(fig, out, name, xlabel=STEPS_LABEL):
@@ -414,6 +459,10 @@ def _finish(fig, out, name, xlabel=STEPS_LABEL):
       ax.xaxis.set_major_formatter(EngFormatter(sep=""))
       ax.set_xlabel(xlabel)
   fig.tight_layout()
+  for legend in fig.legends:  # a legend below the panels (_legend_below): room for it
+    fig.canvas.draw()
+    height = legend.get_window_extent().height / fig.bbox.height
+    fig.tight_layout(rect=(0, height + 0.01, 1, 1))
   paths = []
   for ext in ("png", "pdf"):
     path = os.path.join(out, f"{name}.{ext}")
@@ -434,18 +483,20 @@ def iqm_curves(rows, task, methods) -> dict:
 
 
 def _iqm_band(ax, curve, label, color=None):
-  steps, point, lower, upper, n = curve
-  line, = ax.plot(steps, point, label=f"{label} ({n} seeds)", color=color, lw=1.6)
-  ax.fill_between(steps, lower, upper, color=line.get_color(), alpha=0.2, lw=0)
+  _band(ax, curve, f"{label} ({seeds_text(curve[4])})", color, bounds=(0, 1))
 
 
 def _intervals(ax, labels, estimates, colors):
-  """rliable's interval-estimate plot: one horizontal 95 % interval and point per label."""
+  """rliable's interval-estimate plot: one horizontal 95 % interval and point per label; an
+  interval too wide to say anything (``uninformative``) says so beside it."""
   for i, ((point, lower, upper), color) in enumerate(zip(estimates, colors)):
     ax.plot([lower, upper], [i, i], color=color, lw=6, alpha=0.5, solid_capstyle="butt")
     ax.plot([point], [i], "k|", ms=14)
+    if uninformative((point, lower, upper)):
+      ax.annotate("too few seeds: the interval tells nothing", (0.5, i), xytext=(0, 9),
+                  textcoords="offset points", ha="center", fontsize=7, color="0.3")
   ax.set_yticks(range(len(labels)), labels)
-  ax.invert_yaxis()
+  ax.set_ylim(len(labels) - 0.4, -0.6)
   ax.grid(alpha=0.3, axis="x")
 
 
@@ -456,18 +507,18 @@ def _iqm_figure(plt, task, curves_, table, out, xlabel=STEPS_LABEL) -> list[str]
   fig, axes = plt.subplots(1, 3 if baselines else 2, figsize=(15 if baselines else 10.5, 4))
   for m, curve in curves_.items():
     _iqm_band(axes[0], curve, label(m), colors[m])
-  axes[0].set(title=f"{task}: S_E, IQM over seeds (95% CI)", xlabel=STEPS_LABEL,
-              ylabel="S_E", ylim=(-0.05, 1.05))
-  axes[0].legend(fontsize=8)
+  axes[0].set(title=f"{task}: IQM over seeds, {INTERVAL}", xlabel=STEPS_LABEL,
+              ylabel=SUCCESS, ylim=(-0.05, 1.05))
   axes[0].grid(alpha=0.3)
+  _legend_below(fig, axes, 4)
   _intervals(axes[1], [label(r["method"]) for r in table], [r["final_s_e"] for r in table],
              [colors[r["method"]] for r in table])
-  axes[1].set(title="final S_E: IQM (95% CI)", xlim=(-0.05, 1.05))
+  axes[1].set(title=f"final {SUCCESS}, IQM, {INTERVAL}", xlim=(-0.05, 1.05))
   if baselines:
     _intervals(axes[2], [f"Ours > {label(r['method'])}" for r in baselines],
                [r["p_ours"] for r in baselines], [colors[r["method"]] for r in baselines])
     axes[2].axvline(0.5, color="gray", ls="--", lw=1)
-    axes[2].set(title="P(ours > method), final S_E (95% CI)", xlim=(-0.05, 1.05))
+    axes[2].set(title=f"P(ours > method), final {SUCCESS}, {INTERVAL}", xlim=(-0.05, 1.05))
   paths = _finish(fig, out, f"{task.lower()}_iqm", xlabel)
   plt.close(fig)
   return paths
@@ -478,10 +529,10 @@ def _ablation_figure(plt, task, curves_, out, xlabel=STEPS_LABEL) -> list[str]:
   fig, ax = plt.subplots(figsize=(5.5, 4))
   for m, curve in curves_.items():
     _iqm_band(ax, curve, label(m))
-  ax.set(title=f"{task}: ablations", xlabel=STEPS_LABEL, ylabel="S_E, IQM over seeds (95% CI)",
-         ylim=(-0.05, 1.05))
-  ax.legend(fontsize=8)
+  ax.set(title=f"{task}: ablations, IQM over seeds, {INTERVAL}", xlabel=STEPS_LABEL,
+         ylabel=SUCCESS, ylim=(-0.05, 1.05))
   ax.grid(alpha=0.3)
+  _legend_below(fig, [ax], 2)
   paths = _finish(fig, out, f"{task.lower()}_ablation", xlabel)
   plt.close(fig)
   return paths
@@ -494,20 +545,22 @@ def _seeds_figure(plt, rows, task, methods, out, xlabel=STEPS_LABEL) -> list[str
   cols = min(len(methods), SEEDS_COLUMNS)
   rows_of_panels = -(-len(methods) // cols)
   fig, axes = plt.subplots(rows_of_panels, cols, sharey=True, squeeze=False,
-                           figsize=(max(4.2 * cols, 6.5), 3.6 * rows_of_panels))
+                           figsize=(max(4.2 * cols, 6.5), 4.4 * rows_of_panels))
   for ax in axes.flat[len(methods):]:
     ax.set_visible(False)
   for ax, m in zip(axes.flat, methods):
     steps, seeds, values = _seed_table(rows, task, m, "eval_success")
     for k, (seed, seed_values) in enumerate(zip(seeds, values)):
       ax.plot(steps, seed_values, lw=1.1, color=f"C{k % 10}", label=f"seed {seed}")
-    ax.set(title=f"{label(m)} ({len(values)} seeds)", xlabel=STEPS_LABEL, ylim=(-0.05, 1.05))
+    ax.set(title=f"{label(m)} ({seeds_text(len(values))})", xlabel=STEPS_LABEL,
+           ylim=(-0.05, 1.05))
     ax.grid(alpha=0.3)
-    if len(values) <= SEEDS_LEGEND:
-      ax.legend(fontsize=7, ncol=2, loc="upper left")
+    if len(values) <= SEEDS_LEGEND:  # below the panel: a curve at 1.0 stays in sight
+      ax.legend(fontsize=7, ncol=min(len(values), 4), loc="upper center",
+                bbox_to_anchor=(0.5, -0.2), frameon=False)
   for row in axes:
-    row[0].set_ylabel("S_E of each seed")
-  fig.suptitle(f"{task}: S_E per seed")
+    row[0].set_ylabel(f"{SUCCESS}, each seed")
+  fig.suptitle(f"{task}: {SUCCESS} of every seed")
   paths = _finish(fig, out, f"{task.lower()}_seeds", xlabel)
   plt.close(fig)
   return paths
@@ -536,6 +589,55 @@ def plot(dirs, out=None, axis: str = "env") -> list[str]:
   return written
 
 
+def _success_figure(plt, rows, task, present, out, xlabel=STEPS_LABEL) -> list[str]:
+  """The success rate and the evaluation return of each method: means over seeds with their
+  95 % intervals (the success rate's clipped to [0, 1])."""
+  fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4.4))
+  for i, m in enumerate(present):
+    curve = curves(rows, task, m, "eval_success")
+    _band(ax1, curve, f"{label(m)} ({seeds_text(curve[4])})", f"C{i}", bounds=(0, 1))
+    _band(ax2, curves(rows, task, m, "eval_return"), label(m), f"C{i}")
+  ax1.set(title=f"{task}: {SUCCESS}, mean over seeds, {INTERVAL}", xlabel=STEPS_LABEL,
+          ylabel=f"{SUCCESS} (evaluation)", ylim=(-0.05, 1.05))
+  ax2.set(title=f"{task}: evaluation return, mean, {INTERVAL}", xlabel=STEPS_LABEL,
+          ylabel="return per episode")
+  for ax in (ax1, ax2):
+    ax.grid(alpha=0.3)
+  _legend_below(fig, [ax1], 4)
+  paths = _finish(fig, out, f"{task.lower()}_success", xlabel)
+  plt.close(fig)
+  return paths
+
+
+def _modes_figure(plt, rows, task, present, out, xlabel=STEPS_LABEL) -> list[str]:
+  """The Middle decisions (or env steps) in each mode, cumulative, per method: means over
+  seeds with their 95 % intervals, each mode in its colour and line style; the modes a method
+  never chose are named in its panel (their lines lie on 0, one over another)."""
+  fig, axes = plt.subplots(1, len(present), figsize=(max(3.6 * len(present), 6.5), 3.9),
+                           sharey=True, squeeze=False)
+  unit = "decisions" if all(r.get("cum_decisions_TD3", "") != "" for r in rows
+                            if r["task"] == task) else "steps"
+  for ax, m in zip(axes[0], present):
+    never = []
+    for mode in MODES:
+      curve = curves(rows, task, m, f"cum_{unit}_{mode}")
+      _band(ax, curve, mode, MODE_COLORS[mode], bounds=(0, np.inf), ls=MODE_STYLES[mode])
+      if len(curve[1]) and not np.any(curve[1]):
+        never.append(mode)
+    if never:
+      ax.text(0.03, 0.97, f"never chosen: {', '.join(never)}", transform=ax.transAxes,
+              va="top", fontsize=7, color="0.3")
+    ax.set(title=label(m), xlabel=STEPS_LABEL)
+    ax.grid(alpha=0.3)
+  axes[0][0].set_ylabel("Middle decisions in the mode (cumulative)" if unit == "decisions"
+                        else "env steps run in the mode (cumulative)")
+  _legend_below(fig, [axes[0][0]], 3)
+  fig.suptitle(f"{task}: the modes chosen, mean over seeds, {INTERVAL}")
+  paths = _finish(fig, out, f"{task.lower()}_modes", xlabel)
+  plt.close(fig)
+  return paths
+
+
 def _draw(rows, out, xlabel=STEPS_LABEL) -> list[str]:
   """The figures of every task in ``rows`` and their ``summary.md`` into folder ``out``."""
   import matplotlib
@@ -548,37 +650,8 @@ def _draw(rows, out, xlabel=STEPS_LABEL) -> list[str]:
   for task in sorted({r["task"] for r in rows}):
     present = variants(rows, task)
 
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4))
-    for m in present:
-      steps, mean, std, n = curves(rows, task, m, "eval_success")
-      _band(ax1, steps, mean, std, f"{label(m)} ({n} seeds)")
-      steps, mean, std, n = curves(rows, task, m, "eval_return")
-      _band(ax2, steps, mean, std, label(m))
-    ax1.set(title=f"{task}: success rate", xlabel=STEPS_LABEL,
-            ylabel="S_E (Middle TD3 + Low TD3)", ylim=(-0.05, 1.05))
-    ax2.set(title=f"{task}: evaluation return", xlabel=STEPS_LABEL, ylabel="return per episode")
-    ax1.legend(fontsize=8)
-    for ax in (ax1, ax2):
-      ax.grid(alpha=0.3)
-    written += _finish(fig, out, f"{task.lower()}_success", xlabel)
-    plt.close(fig)
-
-    fig, axes = plt.subplots(1, len(present), figsize=(max(3.6 * len(present), 6.5), 3.4),
-                             sharey=True, squeeze=False)
-    unit = "decisions" if all(r.get("cum_decisions_TD3", "") != "" for r in rows
-                              if r["task"] == task) else "steps"
-    for ax, m in zip(axes[0], present):
-      for mode in MODES:
-        steps, mean, std, _ = curves(rows, task, m, f"cum_{unit}_{mode}")
-        _band(ax, steps, mean, std, mode, MODE_COLORS[mode])
-      ax.set(title=label(m), xlabel=STEPS_LABEL)
-      ax.grid(alpha=0.3)
-    axes[0][0].set_ylabel("Middle decisions in the mode (cumulative)" if unit == "decisions"
-                          else "env steps run in the mode (cumulative)")
-    axes[0][0].legend(fontsize=8)
-    fig.suptitle(f"{task}: exploitation (TD3) and exploration (PPO, RANDOM)")
-    written += _finish(fig, out, f"{task.lower()}_modes", xlabel)
-    plt.close(fig)
+    written += _success_figure(plt, rows, task, present, out, xlabel)
+    written += _modes_figure(plt, rows, task, present, out, xlabel)
 
     iqm = iqm_curves(rows, task, present)
     written += _iqm_figure(plt, task, iqm, [r for r in table if r["task"] == task], out,

@@ -4,9 +4,8 @@
     python -m experiments.pointpush --help          # every option and config field
 """
 
-import sys
-
-from experiments import cli
-
 if __name__ == "__main__":
-  sys.exit(cli.main(cli.task_of_module(__spec__.name)))
+  from nonmono_jax.host import interrupts
+  interrupts.install()  # first: a Ctrl-C at any moment of start-up is one line
+  from experiments import launch
+  launch.main(__spec__.name)

@@ -8,7 +8,7 @@ code) for
 latest evaluation the checkpoint covers), and draws it from above: walls, chasm, the movable
 blocks where they are, the target with its success radius, the robot's path, and the Middle's
 current goal (the world point s[:3] + g that the Low is sent to) with the line from the robot
-to it.
+to it; a key below the maze names each mark (``KEY``).
 
     python -m experiments.render runs/quick --method hiro --seed 1 --out hiro.gif
     python -m experiments.render results/antpush/ours --seed best     # DIR/ours_seed<N>.gif
@@ -115,7 +115,7 @@ def draw(roll: dict, path: str, max_frames: int = 150, fps: int = 15) -> int:
 
   env = roll["env"]
   lay = env.layout
-  fig, ax = plt.subplots(figsize=(5, 5))
+  fig, ax = plt.subplots(figsize=(5, 5.8))
   walls, ghosts = lay.wall_boxes(optimised=False)
   for box in walls + ghosts:
     lo, hi = box.lo, box.hi
@@ -140,6 +140,7 @@ def draw(roll: dict, path: str, max_frames: int = 150, fps: int = 15) -> int:
   ax.set(xlim=(x0 - s / 2, x1 + s / 2), ylim=(y1 + s / 2, y0 - s / 2), aspect="equal",
          xticks=[], yticks=[])
   title = ax.set_title("")
+  key(ax)
   pos, goals, blocks, success = roll["pos"], roll["goal"], roll["blocks"], roll["success"]
   frames = np.unique(np.linspace(0, len(pos) - 1, min(max_frames, len(pos))).astype(int))
 
@@ -156,10 +157,40 @@ def draw(roll: dict, path: str, max_frames: int = 150, fps: int = 15) -> int:
                    f"step {t}{'  reached the target' if reached else ''}")
     return [path_line, robot, goal, link, title, *block_patches]
 
+  fig.tight_layout()
   anim = animation.FuncAnimation(fig, update, frames=frames, blit=False)
   anim.save(path, writer=animation.PillowWriter(fps=fps))
   plt.close(fig)
   return len(frames)
+
+
+# What each mark of the GIF is: (label, matplotlib line or patch style), in ``key``'s order.
+KEY = (
+    ("robot", {"marker": "o", "color": "tab:blue", "ms": 7, "ls": ""}),
+    ("its path", {"color": "tab:blue", "lw": 1.5}),
+    ("Middle's goal", {"marker": "x", "color": "tab:red", "ms": 8, "mew": 2.5, "ls": "--",
+                       "lw": 1}),
+    ("target, its radius", {"marker": "*", "color": "goldenrod", "ms": 11, "ls": ""}),
+    ("block", {"patch": "tab:brown"}),
+    ("chasm", {"patch": "0.1"}),
+    ("wall", {"patch": "0.55"}),
+)
+
+
+def key(ax) -> list[str]:
+  """The GIF's key below the maze (``KEY``): the robot, its path, the Middle's current goal
+  (the dashed line joins it to the robot), the target with its success radius, the blocks,
+  chasm and walls. Returns the labels."""
+  from matplotlib import lines, patches
+  handles = []
+  for name, style in KEY:
+    style = dict(style)
+    color = style.pop("patch", None)
+    handles.append(patches.Patch(color=color, label=name) if color is not None
+                   else lines.Line2D([], [], label=name, **style))
+  ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.01), ncol=4,
+            fontsize=7, frameon=False, handlelength=1.6, columnspacing=1.0)
+  return [h.get_label() for h in handles]
 
 
 def main(argv=None) -> int:

@@ -57,6 +57,12 @@ def iqm(scores) -> np.ndarray:
   return scipy.stats.trim_mean(s.reshape(-1, *s.shape[2:]), proportiontocut=0.25, axis=0)
 
 
+def mean(scores) -> np.ndarray:
+  """Mean over runs x tasks (axes 0 and 1), per any further axis (steps)."""
+  s = np.asarray(scores, dtype=float)
+  return s.reshape(-1, *s.shape[2:]).mean(axis=0)
+
+
 def probability_of_improvement(x, y) -> np.ndarray:
   """P(X > Y): per task U / (n m), ties 1/2, averaged over tasks (axis 1 of (runs, tasks))."""
   x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
@@ -164,6 +170,15 @@ def interval(statistic: Callable[..., np.ndarray], *scores, reps=REPS,
     replicates = statistic(*(resample(s, reps, rng) for s in scores))
     lower, upper = np.percentile(replicates, [tail, 100 - tail], axis=-1)
   return statistic(*scores), lower, upper
+
+
+def mean_curve(values, reps=REPS, size: float = SIZE, seed: int = 0):
+  """(mean, lower, upper) per step of one task's ``values`` (runs, steps): the mean curve with
+  pointwise stratified-bootstrap intervals."""
+  values = np.asarray(values, dtype=float)
+  if values.ndim != 2:
+    raise ValueError(f"values must be (runs, steps), got shape {values.shape}")
+  return interval(mean, values[:, None, :], reps=reps, size=size, seed=seed)
 
 
 def iqm_curve(values, reps=REPS, size: float = SIZE, seed: int = 0):

@@ -293,3 +293,82 @@ def test_the_papers_axis_counts_from_the_end_of_warm_up(tmp_path):
     plot.load([str(run)], axis="paper")
   out = plot.plot([os.path.join(study, "ours")], str(tmp_path / "fig"), axis="paper")
   assert any(p.endswith("antpush_iqm.png") for p in out)
+
+
+# --- what a reader of the figures is told (issue 51) ------------------------------------------
+
+def _figure_of(monkeypatch, draw, *args):
+  """The figure ``draw(plt, *args, out)`` makes (``_finish`` intercepted, nothing written)."""
+  import matplotlib
+  matplotlib.use("Agg")
+  import matplotlib.pyplot as plt
+  figures = []
+  monkeypatch.setattr(plot, "_finish", lambda fig, out, name, *_: figures.append(fig) or [])
+  draw(plt, *args, "unused")
+  (fig,) = figures
+  fig.canvas.draw()
+  return fig
+
+
+def test_success_bands_are_intervals_clipped_to_one_and_the_legend_covers_nothing(
+    tmp_path, monkeypatch):
+  monkeypatch.setitem(S_E, "one", [(0.0, 1.0, 1.0)])
+  rows = plot.load([_write(tmp_path / "x", ["ours", "hiro", "one"])])
+  fig = _figure_of(monkeypatch, plot._success_figure, rows, "PointMaze", ["ours", "hiro", "one"])
+  ax = fig.axes[0]
+  assert "95% CI" in ax.get_title() and ax.get_ylabel() == "success rate (evaluation)"
+  for band in ax.collections:
+    ys = np.concatenate([p.vertices[:, 1] for p in band.get_paths()])
+    assert ys.min() >= 0 and ys.max() <= 1
+  assert ax.get_legend() is None and len(fig.legends) == 1  # below the panels
+  labels = [t.get_text() for t in fig.legends[0].get_texts()]
+  assert "One (1 seed)" in labels or any(l.endswith("(1 seed)") for l in labels), labels
+  legend_top = fig.legends[0].get_window_extent().y1
+  assert legend_top <= ax.get_window_extent().y0  # under the axes, not on a curve
+
+
+def test_a_mode_never_chosen_is_named_and_drawn_in_its_own_style(tmp_path, monkeypatch):
+  rows = plot.load([_write(tmp_path / "x", ["ours", "hiro"])])
+  for r in rows:  # HIRO runs TD3 only: its PPO and RANDOM lines lie on 0, one over the other
+    if r["method"] == "hiro":
+      r["cum_steps_PPO"] = r["cum_steps_RANDOM"] = "0"
+  fig = _figure_of(monkeypatch, plot._modes_figure, rows, "PointMaze", ["ours", "hiro"])
+  hiro = fig.axes[1]
+  styles = {l.get_label(): l.get_linestyle() for l in hiro.get_lines()}
+  assert len(set(styles.values())) == 3, styles
+  texts = [t.get_text() for t in hiro.texts]
+  assert texts == ["never chosen: PPO, RANDOM"], texts
+
+
+def test_too_few_seeds_for_an_interval_is_said(tmp_path, monkeypatch):
+  """Four seeds that end at 0 or 1: the IQM's bootstrap interval spans [0, 1] and says nothing;
+  the summary names it."""
+  monkeypatch.setitem(S_E, "ours", [(0.0, 0.0, 1.0), (0.0, 1.0, 1.0), (0.0, 0.0, 0.0),
+                                    (0.0, 0.0, 0.0)])
+  rows = plot.load([_write(tmp_path / "x", ["ours"])])
+  (r,) = plot.summary(rows)
+  assert plot.uninformative(r["final_s_e"])
+  note = plot.too_few_note([r])
+  assert note.startswith("Too few seeds for an interval") and "Ours (4 seeds" in note
+  assert "Too few seeds for an interval" in plot.tables(rows)
+  assert plot.seeds_text(1) == "1 seed" and plot.seeds_text(4) == "4 seeds"
+
+
+def test_the_gif_has_a_key_for_its_marks(tmp_path):
+  import envs
+  from experiments import render
+  env = envs.make("PointMaze", episode_length=10)
+  n = 4
+  roll = {"env": env, "pos": np.zeros((n, 3)), "goal": np.ones((n, 3)),
+          "blocks": np.zeros((n, 0, 3)), "success": np.zeros(n, bool), "task": "PointMaze",
+          "method": "ours", "seed": 0, "step": 100, "num_envs": 1}
+  assert render.draw(roll, str(tmp_path / "a.gif"), max_frames=2) == 2
+  import matplotlib
+  matplotlib.use("Agg")
+  import matplotlib.pyplot as plt
+  fig, ax = plt.subplots()
+  labels = render.key(ax)
+  assert labels == ["robot", "its path", "Middle's goal", "target, its radius", "block", "chasm",
+                    "wall"]
+  assert [t.get_text() for t in ax.get_legend().get_texts()] == labels
+  plt.close(fig)

@@ -9,7 +9,8 @@ import pytest
 
 import envs
 from nonmono_jax.core import numbers, train
-from nonmono_jax.core.config import AgentConfig, check_group
+from nonmono_jax.core.config import AgentConfig
+from nonmono_jax.core.numbers import check_group
 from nonmono_jax.host import methods, run, sinks
 from nonmono_jax.host import plan as plan_lib
 from tests.tests_support import TINY_OVERRIDES

@@ -2,12 +2,18 @@
 
     AgentConfig            the hierarchy, the method's switch, the schedule, the learners
       .top: TopConfig      Top PPO: horizon, alpha, S_O, the starting mode, loss modification
-      .homeostasis         Pislar et al.'s trigger (Ref:Uniform / Ref:PPO): rho, explore period
+      .homeostasis         HomeostasisConfig: Pislar et al.'s trigger (Ref:*): rho, explore period
       .low, .middle        TD3Config of the Low and Middle TD3
       .middle_ppo          PPOConfig of the Middle PPO (Gaussian goals, decaying std)
 
 A method (``methods.py``) is one of these configurations; every value is checked here, before
-anything compiles, with a message that names the field.
+anything compiles, with a message that names the field. This module imports no JAX: the
+command line reads it to build its flags and answer ``--help`` at once.
+
+Each field is declared once, where its class declares it: its type, its default, whether it
+is a lane's traced number (``traced(default)``, ``numbers.py``), its allowed values
+(``choice(default, allowed)``, checked by ``check_choices``) and, in the comment beside or
+above it, what it means (the command line's help text, ``experiments/flags.py``).
 
 One way to change a configuration: dotted paths (``override``), as presets, methods, the
 command line, tests and benchmarks all do; ``config_from_dict`` inverts ``io.to_jsonable`` so
@@ -23,16 +29,20 @@ from __future__ import annotations
 import collections.abc
 import dataclasses
 import typing
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 
-from nonmono_jax.core import hierarchy, homeostasis, numbers, ppo, relabel, td3, validation
-from nonmono_jax.core.numbers import traced
+from nonmono_jax.core import validation
+
+# The modes of the Top level, g_expl_mode, in the order of the paper's alpha and S_O tuples:
+# TD3 (exploit), PPO and RANDOM (explore). ``hierarchy`` holds the formulas that use them.
+TD3, PPO, RANDOM = 0, 1, 2
+MODES = ("TD3", "PPO", "RANDOM")
+GOAL_SIZE = 3  # goals are xyz offsets: the first 3 observation entries of every env
 
 SWITCHES = ("none", "top", "homeostasis")  # HIRO / ours / Ref:Uniform and Ref:PPO
 EXPLORE_MODES = ("ppo", "random")  # the explore mode of the homeostasis switch
 RANDOM_GOALS = ("uniform", "gaussian")  # ours uniform; the paper's code clip(randn * range)
 RELABELS = ("store", "sample")  # the paper's code: once at store, Low target actor; HIRO: per batch
-RELABEL_TIES = relabel.TIES  # an exact tie of the correction's candidates: "random", the code's
 PPO_SAMPLES = ("own", "executed")  # what the Middle PPO stores for segments other modes ran
 # Where the paper's code made a choice that this project first made otherwise
 # (docs/fidelity.md): the first value is the earlier one, kept as the default so that every
@@ -51,12 +61,47 @@ WARMUP_GOALS = ("uniform", "gaussian")  # warm-up goals: U(+-range) or the code'
 # c steps with the goal transition, or the code's Middle TD3 re-queried at every env step
 EVAL_GOALS = ("held", "requery")
 EVAL_KINDS = EVAL_GOALS + ("ppo",)
+# Network initialisation (networks.py): flax's lecun-uniform weights and zero biases, or
+# PyTorch's nn.Linear default (weights and biases U(+-1/sqrt(fan_in))), the paper's code's
+INITS = ("lecun", "torch")
+MEAN_HEADS = ("linear", "tanh")  # the Gaussian PPO's mean head (ppo.py)
+CADENCES = ("periods", "code")  # when the homeostasis trigger checks (switch.py)
+TARGET_NOISES = ("sample", "batch")  # TD3's target smoothing: a draw per sample, or one per batch
+VALUE_WEIGHTINGS = ("sample", "batch")  # PPO's loss weight on each sample's value error, or on
+#                                         the rollout's mean value loss (the paper's PPOM)
+RELABEL_TIES = ("original", "random")  # an exact tie of HIRO's correction: the original goal wins,
+#                                        or (the code) its first candidate, a random one
+
+TRACED, CHOICES = "traced", "choices"  # the metadata keys of the two declarations below
+
+
+def traced(default) -> Any:
+  """A dataclass field whose value is a lane's number (a float, a bool as 0/1, or a tuple of
+  floats), read by the jitted step from ``numbers.Numbers`` rather than compiled in."""
+  return dataclasses.field(default=default, metadata={TRACED: True})
+
+
+def choice(default, allowed: Sequence[str]) -> Any:
+  """A string field (or a tuple of strings) whose values are among ``allowed``."""
+  return dataclasses.field(default=default, metadata={CHOICES: tuple(allowed)})
+
+
+def check_choices(config, prefix: str = "") -> None:
+  """Every ``choice`` field of ``config`` (not nested ones) holds allowed values."""
+  for f in dataclasses.fields(config):
+    allowed = f.metadata.get(CHOICES)
+    value = getattr(config, f.name)
+    if allowed is None:
+      continue
+    for v in (value if isinstance(value, tuple) else (value,)):
+      if v not in allowed:
+        raise ValueError(f"{prefix}{f.name} must be one of {', '.join(allowed)}; got {v!r}")
 
 
 def _check_triple(name, values, lo=None, hi=None):
-  if len(values) != len(hierarchy.MODES):
-    raise ValueError(f"{name} must have {len(hierarchy.MODES)} entries "
-                     f"(one per mode {', '.join(hierarchy.MODES)}), got {values}")
+  if len(values) != len(MODES):
+    raise ValueError(f"{name} must have {len(MODES)} entries "
+                     f"(one per mode {', '.join(MODES)}), got {values}")
   for v in values:
     if (lo is not None and v < lo) or (hi is not None and v > hi):
       bound = (f">= {lo}" if hi is None else f"<= {hi}" if lo is None else f"in [{lo}, {hi}]")
@@ -68,19 +113,143 @@ def _check_multiple(name, value, of_name, of):
     raise ValueError(f"{name} must be a positive multiple of {of_name} ({of}), got {value}")
 
 
+# --- the learners ------------------------------------------------------------------------------
+
+@dataclasses.dataclass(frozen=True)
+class TD3Config:
+  """TD3 hyperparameters; defaults are the paper's (docs/spec.md, section 2; both levels)."""
+
+  hidden: Sequence[int] = (300, 300)  # hidden layer sizes of the actor and both critics
+  lr_actor: float = traced(1e-4)  # Adam learning rate of the actor
+  lr_critic: float = traced(1e-3)  # Adam learning rate of the critics
+  gamma: float = traced(0.99)  # discount per step of this level
+  tau: float = traced(5e-3)  # Polyak rate of the target networks
+  batch_size: int = 100  # transitions per update
+  policy_noise: float = traced(0.2)  # target smoothing noise std (absolute, as the HIRO port)
+  noise_clip: float = traced(0.5)  # the target smoothing noise is clipped to +-noise_clip
+  policy_delay: int = 1  # the paper's code: policy_freq = 1 (TD3's paper: 2)
+  expl_noise: float = traced(1.0)  # behaviour noise std before clipping (Low: N(0, 1) on torques)
+  buffer_size: int = 200_000  # a ring; the run presets size it to the run (never evicts)
+  target_smoothing: bool = True  # TD3's target policy smoothing (ours' Middle: off)
+  # the smoothing noise drawn per sample, or (the code) once per batch, shared by every sample
+  target_noise: str = choice("sample", TARGET_NOISES)
+  init: str = choice("lecun", INITS)  # network initialisation: "torch" is the paper's code
+
+  def __post_init__(self):
+    for name in ("lr_actor", "lr_critic", "tau", "gamma"):
+      v = getattr(self, name)
+      if not 0 < v <= 1:
+        raise ValueError(f"{name} must be in (0, 1], got {v}")
+    for name in ("batch_size", "policy_delay", "buffer_size"):
+      if getattr(self, name) < 1:
+        raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
+    for name in ("policy_noise", "noise_clip", "expl_noise"):
+      if getattr(self, name) < 0:
+        raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
+    if not self.hidden or any(h < 1 for h in self.hidden):
+      raise ValueError(f"hidden must be positive layer sizes, got {self.hidden}")
+    check_choices(self)
+
+
+@dataclasses.dataclass(frozen=True)
+class PPOConfig:
+  """PPO hyper-parameters; the defaults are the paper's (and the port's) numbers."""
+
+  hidden: Sequence[int] = (300, 300)  # hidden layer sizes of the actor and the critic (tanh)
+  lr_actor: float = traced(3e-4)  # Adam learning rate of the actor
+  lr_critic: float = traced(1e-3)  # Adam learning rate of the critic
+  gamma: float = traced(0.99)  # discount of the Monte Carlo returns, per decision
+  clip: float = traced(0.2)  # the ratio's clip range, 1 +- clip
+  k_epochs: int = 10  # full-batch epochs over each rollout
+  entropy_coef: float = traced(0.01)  # weight of the entropy bonus
+  value_coef: float = traced(0.5)  # weight of the critic's loss
+  discrete: bool = False  # a categorical policy (the Top's 3 modes) instead of a Gaussian
+  std_init: float = 0.6  # the Gaussian's std at the start (in goal units with a linear head)
+  std_decay: float = 0.05  # the std drops by this much every std_decay_every steps
+  std_decay_every: int = 250_000  # env steps between two std decays
+  std_min: float = 0.1  # the std decays no lower
+  # the Gaussian's mean: "linear" (the paper's code) or "tanh" (scaled by the action range)
+  mean_head: str = choice("linear", MEAN_HEADS)
+  # The std schedule's first decay at step 0 (the paper's code: its t % 250K == 0 fires at
+  # t = 0 too, so the Middle's std is 0.55 on [0, 250K)); False: std_init until the first period
+  decay_at_start: bool = False
+  init: str = choice("lecun", INITS)  # network initialisation: "torch" is the paper's code
+  # the loss weight (Top: 1 +- S_E) on each sample's value error, or (the code) on the
+  # rollout's mean value loss added to every sample's loss (ppo.py)
+  value_weighting: str = choice("sample", VALUE_WEIGHTINGS)
+
+  def __post_init__(self):
+    object.__setattr__(self, "hidden", tuple(int(h) for h in self.hidden))
+    if not self.hidden or min(self.hidden) <= 0:
+      raise ValueError(f"hidden must be non-empty positive sizes, got {self.hidden}")
+    for name in ("lr_actor", "lr_critic"):  # the same bounds as TD3's (TD3Config)
+      if not 0 < getattr(self, name) <= 1:
+        raise ValueError(f"{name} must be in (0, 1], got {getattr(self, name)}")
+    if not 0 < self.gamma <= 1:
+      raise ValueError(f"gamma must be in (0, 1], got {self.gamma}")
+    if not 0 < self.clip < 1:
+      raise ValueError(f"clip must be in (0, 1), got {self.clip}")
+    if self.k_epochs < 1:
+      raise ValueError(f"k_epochs must be >= 1, got {self.k_epochs}")
+    if self.entropy_coef < 0:
+      raise ValueError(f"entropy_coef must be >= 0, got {self.entropy_coef}")
+    if self.value_coef < 0:
+      raise ValueError(f"value_coef must be >= 0, got {self.value_coef}")
+    if self.std_init <= 0:
+      raise ValueError(f"std_init must be positive, got {self.std_init}")
+    if self.std_min <= 0 or self.std_min > self.std_init:
+      raise ValueError(f"std_min must be in (0, std_init], got {self.std_min}")
+    if self.std_decay < 0:
+      raise ValueError(f"std_decay must be >= 0, got {self.std_decay}")
+    if self.std_decay_every < 1:
+      raise ValueError(f"std_decay_every must be >= 1, got {self.std_decay_every}")
+    check_choices(self)
+
+
+@dataclasses.dataclass(frozen=True)
+class HomeostasisConfig:
+  """The informed trigger's options (``switch.py``): the paper's Ref code decides at Middle
+  decisions, so ``k`` and ``gamma`` are per Middle segment of c env steps."""
+
+  rho: float = traced(0.01)  # target exploit -> explore switch rate per trigger check
+  explore_steps: int = 100  # length of an explore period in env steps: intra(100)
+  gamma: float = 0.99  # discount of the value promise, per Middle segment
+  k: int = 30  # lookback of the value promise discrepancy, in Middle segments
+  reset_stats: bool = True  # fresh homeostasis statistics after each explore period
+  # "periods": explore_steps of explore, then k exploit segments to fill a fresh window before
+  # the first check (intra(100)); "code": the paper's code, k explore segments per switch (and
+  # k - 1 after the starting phase), a check right after them and at every exploit segment
+  cadence: str = choice("periods", CADENCES)
+
+  def __post_init__(self):
+    if not 0 < self.rho <= 1:
+      raise ValueError(f"rho must be in (0, 1], got {self.rho}")
+    if self.explore_steps < 1:
+      raise ValueError(f"explore_steps must be >= 1, got {self.explore_steps}")
+    if not 0 < self.gamma <= 1:
+      raise ValueError(f"gamma must be in (0, 1], got {self.gamma}")
+    if self.k < 1:
+      raise ValueError(f"k must be >= 1, got {self.k}")
+    check_choices(self, "homeostasis.")
+
+
+# --- the agent ---------------------------------------------------------------------------------
+
 @dataclasses.dataclass(frozen=True)
 class TopConfig:
   """The Top level: PPO over g_expl_mode in (TD3, PPO, RANDOM), one choice per ``horizon``."""
 
   horizon: int = 50  # Top horizon, env steps
-  alpha: tuple[float, float, float] = traced((0.0, 0.4, 0.7))  # R_final = R_m + alpha[m] R_m
-  s_o: tuple[float, float, float] = traced((0.6, 0.6, 0.6))  # done_m = S_O_m >= S_O[m]
+  # R_final = R_m + alpha[m] R_m, one per mode (TD3, PPO, RANDOM): larger, rarer mode
+  alpha: tuple[float, float, float] = traced((0.0, 0.4, 0.7))
+  # done_m = S_O_m >= S_O[m], one per mode (TD3, PPO, RANDOM)
+  s_o: tuple[float, float, float] = traced((0.6, 0.6, 0.6))
   s_o_start: float = traced(0.9)  # S_O during the starting mode
   starting_steps: int = 250_000  # after warm-up, the Top is forced to RANDOM for this long
   train_every: int = 400  # Top PPO trains on the train_every / horizon latest Top transitions
   reward_mod: bool = traced(True)  # False: alpha = 0 (ablation; a 0/1 weight of alpha)
   loss_mod: bool = traced(True)  # False: no S_E term in the Top loss (ablation; 0/1 weight)
-  ppo: ppo.PPOConfig = ppo.PPOConfig(discrete=True)
+  ppo: PPOConfig = PPOConfig(discrete=True)  # the Top PPO (categorical over the 3 modes)
 
   def __post_init__(self):
     object.__setattr__(self, "alpha", tuple(float(a) for a in self.alpha))
@@ -106,63 +275,68 @@ class TopConfig:
 class AgentConfig:
   """The whole agent; the defaults are ours on Ant Push (docs/spec.md, sections 2 and 3)."""
 
-  switch: str = "top"  # "none" (HIRO), "top" (ours), "homeostasis" (Ref:*)
-  explore_mode: str = "ppo"  # homeostasis only: the explore mode, "ppo" or "random"
-  random_goal: str = "uniform"
-  middle_relabel: str = "store"  # HIRO's goal relabelling: "store" (paper's code) or "sample"
-  relabel_ties: str = "original"  # RELABEL_TIES: the winner of an exact tie; the code: "random"
-  middle_ppo_sample: str = "own"  # Middle PPO rollout: its "own" sample or the "executed" goal
-  low_done_goal: str = "next"  # LOW_DONE_GOALS; the code: "current"
-  scored_state: str = "next"  # SCORED_STATES; the code: "current" (evaluation scores s' always)
-  episode_start: str = "reset"  # EPISODE_STARTS; the code: "last"
-  middle_td3_input: str = "state_target"  # MIDDLE_TD3_INPUTS; the code: "state"
-  middle_td3_first_state: str = "last"  # FIRST_SEGMENT_STATES; the code: "reset"
-  warmup_goal: str = "uniform"  # WARMUP_GOALS; the code: "gaussian" (RANDOM: random_goal)
-  eval_goal: str = "held"  # EVAL_GOALS; the code: "requery"
-  # evaluation kinds also run each time, for their columns only (EVAL_KINDS): "held", "requery",
-  # "ppo" (the Middle PPO re-queried, the code's 'higher success rate'; where it exists)
-  eval_extra: tuple[str, ...] = ()
+  # how g_expl_mode is chosen: "none" (HIRO), "top" (ours), "homeostasis" (Ref:Uniform, Ref:PPO)
+  switch: str = choice("top", SWITCHES)
+  explore_mode: str = choice("ppo", EXPLORE_MODES)  # homeostasis only: the explore mode
+  # the RANDOM mode's goals: uniform in the goal range, or the code's clipped Gaussian
+  random_goal: str = choice("uniform", RANDOM_GOALS)
+  # HIRO's goal relabelling: once at store (the paper's code) or per sampled batch
+  middle_relabel: str = choice("store", RELABELS)
+  # which candidate of HIRO's correction wins an exact tie: the original goal, or (the code)
+  # its first candidate, a random one
+  relabel_ties: str = choice("original", RELABEL_TIES)
+  # what the Middle PPO's rollout stores for segments another mode ran: its own sample of a
+  # goal, or the goal executed
+  middle_ppo_sample: str = choice("own", PPO_SAMPLES)
+  # the Low's done, ||g|| <= 1.5, of the next goal g' or (the code) of the current goal g
+  low_done_goal: str = choice("next", LOW_DONE_GOALS)
+  # training's task reward and success scored on s' or (the code) on s; evaluation scores s'
+  scored_state: str = choice("next", SCORED_STATES)
+  # an episode's first goal and mode from the reset state or (the code) from the last state
+  # before the reset
+  episode_start: str = choice("reset", EPISODE_STARTS)
+  # the Middle TD3 actor's input: the state and the target, or (the code) the state alone
+  middle_td3_input: str = choice("state_target", MIDDLE_TD3_INPUTS)
+  # the Middle TD3's s_0 in an episode's first segment (with episode_start "last"): the last
+  # state before the reset, or (the code) the reset state
+  middle_td3_first_state: str = choice("last", FIRST_SEGMENT_STATES)
+  # the warm-up's goals: uniform, or (the code) the clipped Gaussian (RANDOM's: random_goal)
+  warmup_goal: str = choice("uniform", WARMUP_GOALS)
+  # the evaluation that gives S_E: the Middle TD3's goal held c steps, or (the code) the
+  # Middle TD3 re-queried at every env step
+  eval_goal: str = choice("held", EVAL_GOALS)
+  # evaluation kinds also run each time, for their columns only: "held", "requery", "ppo" (the
+  # Middle PPO re-queried, the code's 'higher success rate'; where it exists); none: no values
+  eval_extra: tuple[str, ...] = choice((), EVAL_KINDS)
   # PPO returns (Top and Middle PPO) also end at an episode's end (False) or only at their own
   # terminals, done_m and success (True, the code's: a return may run into the next episode)
   returns_cross_episodes: bool = False
   eval_target_networks: bool = True  # S_E of the target actors, as the paper's code
-  c: int = 10  # Middle horizon
-  goal_range: tuple[float, float, float] = (10.0, 10.0, 0.5)
+  c: int = 10  # Middle horizon: env steps per Middle goal
+  goal_range: tuple[float, float, float] = (10.0, 10.0, 0.5)  # the goals' x, y, z bounds (+-)
   warmup_steps: int = 100_000  # random low actions and goals, no updates
   middle_goal_noise: float = traced(0.0)  # Gaussian noise on TD3 goals: HIRO 1, ours 0
   middle_ppo_every: int = 30  # Middle PPO trains on its latest middle_ppo_every / c transitions
   eval_every: int = 10_000  # S_E of Middle TD3 + Low TD3, every eval_every env steps
-  eval_episodes: int = 50
+  eval_episodes: int = 50  # episodes per evaluation (S_E is their success rate)
   num_envs: int = 1  # envs per seed (paper: 1)
   low_updates: int = 1  # Low TD3 updates per (vector) env step
   middle_updates: int = 1  # Middle TD3 updates per Middle horizon
-  top: TopConfig = TopConfig()
-  homeostasis: homeostasis.HomeostasisConfig = homeostasis.HomeostasisConfig()
-  low: td3.TD3Config = td3.TD3Config()
-  middle: td3.TD3Config = td3.TD3Config(target_smoothing=False)
-  middle_ppo: ppo.PPOConfig = ppo.PPOConfig()
+  top: TopConfig = TopConfig()  # the Top PPO that picks g_expl_mode per Top horizon (ours)
+  # Pislar et al.'s informed trigger between TD3 and one explore mode (Ref:Uniform, Ref:PPO)
+  homeostasis: HomeostasisConfig = HomeostasisConfig()
+  low: TD3Config = TD3Config()  # the Low TD3: torques every env step toward the Middle's goal
+  middle: TD3Config = TD3Config(target_smoothing=False)  # the Middle TD3: a goal every c steps
+  middle_ppo: PPOConfig = PPOConfig()  # the Middle PPO: the PPO mode's goals (Gaussian)
 
   def __post_init__(self):
     object.__setattr__(self, "goal_range", tuple(float(g) for g in self.goal_range))
     object.__setattr__(self, "eval_extra", tuple(self.eval_extra))
-    bad = [k for k in self.eval_extra if k not in EVAL_KINDS]
-    if bad:
-      raise ValueError(f"eval_extra entries must be among {', '.join(EVAL_KINDS)}; got {bad[0]!r}")
-    for name, allowed in (("switch", SWITCHES), ("explore_mode", EXPLORE_MODES),
-                          ("random_goal", RANDOM_GOALS), ("middle_relabel", RELABELS),
-                          ("relabel_ties", RELABEL_TIES),
-                          ("middle_ppo_sample", PPO_SAMPLES), ("low_done_goal", LOW_DONE_GOALS),
-                          ("scored_state", SCORED_STATES), ("episode_start", EPISODE_STARTS),
-                          ("middle_td3_input", MIDDLE_TD3_INPUTS),
-                          ("middle_td3_first_state", FIRST_SEGMENT_STATES),
-                          ("warmup_goal", WARMUP_GOALS), ("eval_goal", EVAL_GOALS)):
-      if getattr(self, name) not in allowed:
-        raise ValueError(f"{name} must be one of {', '.join(allowed)}; "
-                         f"got {getattr(self, name)!r}")
+    check_choices(self)
     if self.c < 1:
       raise ValueError(f"c must be >= 1, got {self.c}")
-    if len(self.goal_range) != hierarchy.GOAL_SIZE:
-      raise ValueError(f"goal_range must have {hierarchy.GOAL_SIZE} entries (x, y, z), "
+    if len(self.goal_range) != GOAL_SIZE:
+      raise ValueError(f"goal_range must have {GOAL_SIZE} entries (x, y, z), "
                        f"got {self.goal_range}")
     if any(r < 0 for r in self.goal_range):
       raise ValueError(f"goal_range must be >= 0, got {self.goal_range}")
@@ -214,7 +388,7 @@ class AgentConfig:
 
   @property
   def explore_mode_index(self) -> int:
-    return hierarchy.PPO if self.explore_mode == "ppo" else hierarchy.RANDOM
+    return PPO if self.explore_mode == "ppo" else RANDOM
 
   def check_env(self, env) -> None:
     """The env's episode must hold whole Middle (and Top) horizons."""
@@ -358,17 +532,3 @@ def get(config, path: str):
 def differences(a, b) -> list[str]:
   """The dotted leaf fields in which two configs of one class differ."""
   return [p for p in leaf_paths(a) if get(a, p) != get(b, p)]
-
-
-def check_group(configs) -> AgentConfig:
-  """The one static key (``numbers.static_key``) of configs that run as lanes of one
-  program; a ValueError naming the fields where they differ."""
-  if not configs:
-    raise ValueError("a group needs at least one config")
-  key = numbers.static_key(configs[0])
-  for i, c in enumerate(configs[1:], 1):
-    other = numbers.static_key(c)
-    if other != key:
-      raise ValueError(f"variant {i} cannot share variant 0's program: they differ in "
-                       f"{', '.join(differences(key, other))} (not traced)")
-  return key

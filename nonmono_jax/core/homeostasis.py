@@ -24,47 +24,16 @@ code divides by the variance x2bar (a quirk not reproduced).
 
 from __future__ import annotations
 
-import dataclasses
-
 import jax
 import jax.numpy as jp
 from flax import struct
 
-from nonmono_jax.core.numbers import traced
+# declared with the agent's config, which imports no JAX
+from nonmono_jax.core.config import CADENCES, HomeostasisConfig  # noqa: F401
 
 EPS = 1e-8  # floor of the standard deviation: x2bar is 0 at the first step and on a constant x
 MAX_Z = 50.0  # cap of the standardised excess, so exp never overflows to inf (inf/inf = NaN)
 HORIZON = 100.0  # tau's cap is HORIZON / rho: averages over ~100 expected switches
-CADENCES = ("periods", "code")  # when the trigger checks (``HomeostasisConfig.cadence``)
-
-
-@dataclasses.dataclass(frozen=True)
-class HomeostasisConfig:
-  """The informed trigger's options (``switch.py``): the paper's Ref code decides at Middle
-  decisions, so ``k`` and ``gamma`` are per Middle segment of c env steps."""
-
-  rho: float = traced(0.01)  # target exploit -> explore switch rate per trigger check
-  explore_steps: int = 100  # length of an explore period in env steps: intra(100)
-  gamma: float = 0.99  # discount of the value promise, per Middle segment
-  k: int = 30  # lookback of the value promise discrepancy, in Middle segments
-  reset_stats: bool = True  # fresh homeostasis statistics after each explore period
-  # "periods": explore_steps of explore, then k exploit segments to fill a fresh window before
-  # the first check (intra(100)); "code": the paper's code, k explore segments per switch (and
-  # k - 1 after the starting phase), a check right after them and at every exploit segment
-  cadence: str = "periods"
-
-  def __post_init__(self):
-    if not 0 < self.rho <= 1:
-      raise ValueError(f"rho must be in (0, 1], got {self.rho}")
-    if self.explore_steps < 1:
-      raise ValueError(f"explore_steps must be >= 1, got {self.explore_steps}")
-    if not 0 < self.gamma <= 1:
-      raise ValueError(f"gamma must be in (0, 1], got {self.gamma}")
-    if self.k < 1:
-      raise ValueError(f"k must be >= 1, got {self.k}")
-    if self.cadence not in CADENCES:
-      raise ValueError(f"homeostasis.cadence must be one of {', '.join(CADENCES)}; "
-                       f"got {self.cadence!r}")
 
 
 def value_promise_discrepancy(v_start: jax.Array, rewards: jax.Array, v_end: jax.Array,

@@ -18,8 +18,9 @@ import flax.linen as nn
 import jax
 import jax.numpy as jp
 
+from nonmono_jax.core.config import INITS
+
 Activation = Callable[[jax.Array], jax.Array]
-INITS = ("lecun", "torch")
 
 
 def _torch_uniform(fan_in: int):

@@ -14,7 +14,8 @@ Everything else is derived from that declaration:
                             configs with equal keys build one program (they can be its lanes)
     stack(configs)          Numbers with a leading variant axis
 
-(``config.check_group`` names the fields where configs of one group would differ.)
+    check_group(configs)    their one static key, or a ValueError naming the fields where they
+                            differ
 
 The trainer always passes a lane's ``Numbers`` as an argument (``train.py``): one program path,
 so a variant run alone computes bit for bit what it computes as a lane of a group. Adding a
@@ -31,20 +32,15 @@ from typing import Any, Iterator, Mapping, Sequence
 import jax
 import numpy as np
 
-_TRACED = "traced"
-
-
-def traced(default) -> Any:
-  """A dataclass field whose value is a lane's number (a float, a bool as 0/1, or a tuple of
-  floats), read by the jitted step from ``Numbers`` rather than compiled in."""
-  return dataclasses.field(default=default, metadata={_TRACED: True})
+from nonmono_jax.core.config import TRACED, differences
+from nonmono_jax.core.config import traced  # noqa: F401 - declared with the config (no JAX)
 
 
 def paths(config, prefix: str = "") -> Iterator[str]:
   """The dotted paths of ``config``'s traced fields, nested configs included."""
   for f in dataclasses.fields(config):
     value = getattr(config, f.name)
-    if f.metadata.get(_TRACED):
+    if f.metadata.get(TRACED):
       yield prefix + f.name
     elif dataclasses.is_dataclass(value):
       yield from paths(value, f"{prefix}{f.name}.")
@@ -97,7 +93,7 @@ def static_key(config):
   changes = {}
   for f in dataclasses.fields(config):
     value = getattr(config, f.name)
-    if f.metadata.get(_TRACED):
+    if f.metadata.get(TRACED):
       changes[f.name] = f.default
     elif dataclasses.is_dataclass(value):
       changes[f.name] = static_key(value)
@@ -107,3 +103,17 @@ def static_key(config):
 def stack(configs: Sequence) -> Numbers:
   """The Numbers of each config stacked on a leading variant axis."""
   return jax.tree.map(lambda *xs: np.stack(xs).astype(np.float32), *[of(c) for c in configs])
+
+
+def check_group(configs):
+  """The one static key (``static_key``) of configs that run as lanes of one program; a
+  ValueError naming the fields where they differ."""
+  if not configs:
+    raise ValueError("a group needs at least one config")
+  key = static_key(configs[0])
+  for i, c in enumerate(configs[1:], 1):
+    other = static_key(c)
+    if other != key:
+      raise ValueError(f"variant {i} cannot share variant 0's program: they differ in "
+                       f"{', '.join(differences(key, other))} (not traced)")
+  return key

@@ -37,7 +37,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Callable, Sequence
+from typing import Callable
 
 import flax.linen as nn
 import jax
@@ -46,72 +46,12 @@ import optax
 from flax import struct
 
 from nonmono_jax.core import learning, networks
-from nonmono_jax.core.numbers import Numbers, traced
+# declared with the agent's config, which imports no JAX
+from nonmono_jax.core.config import MEAN_HEADS, PPOConfig  # noqa: F401
+from nonmono_jax.core.numbers import Numbers
 
 _RETURN_EPS = 1e-7  # the port's normaliser epsilon
 _LOG_2PI_E = math.log(2.0 * math.pi * math.e)
-MEAN_HEADS = ("linear", "tanh")
-VALUE_WEIGHTINGS = ("sample", "batch")  # the loss weight on each sample's value error, or on
-#                                         the rollout's mean value loss (the paper's PPOM)
-
-
-@dataclasses.dataclass(frozen=True)
-class PPOConfig:
-  """PPO hyper-parameters; the defaults are the paper's (and the port's) numbers."""
-
-  hidden: Sequence[int] = (300, 300)
-  lr_actor: float = traced(3e-4)
-  lr_critic: float = traced(1e-3)
-  gamma: float = traced(0.99)
-  clip: float = traced(0.2)
-  k_epochs: int = 10
-  entropy_coef: float = traced(0.01)
-  value_coef: float = traced(0.5)
-  discrete: bool = False
-  std_init: float = 0.6
-  std_decay: float = 0.05
-  std_decay_every: int = 250_000
-  std_min: float = 0.1
-  mean_head: str = "linear"  # Gaussian: "linear" (the paper's code) or "tanh" (scaled by range)
-  # The std schedule's first decay at step 0 (the paper's code: its t % 250K == 0 fires at
-  # t = 0 too, so the Middle's std is 0.55 on [0, 250K)); False: std_init until the first period
-  decay_at_start: bool = False
-  init: str = "lecun"  # networks.INITS: "torch" is the paper's code (PyTorch's nn.Linear default)
-  value_weighting: str = "sample"  # VALUE_WEIGHTINGS: "batch" is the paper's code (module doc)
-
-  def __post_init__(self):
-    object.__setattr__(self, "hidden", tuple(int(h) for h in self.hidden))
-    if not self.hidden or min(self.hidden) <= 0:
-      raise ValueError(f"hidden must be non-empty positive sizes, got {self.hidden}")
-    for name in ("lr_actor", "lr_critic"):  # the same bounds as TD3's (td3.TD3Config)
-      if not 0 < getattr(self, name) <= 1:
-        raise ValueError(f"{name} must be in (0, 1], got {getattr(self, name)}")
-    if not 0 < self.gamma <= 1:
-      raise ValueError(f"gamma must be in (0, 1], got {self.gamma}")
-    if not 0 < self.clip < 1:
-      raise ValueError(f"clip must be in (0, 1), got {self.clip}")
-    if self.k_epochs < 1:
-      raise ValueError(f"k_epochs must be >= 1, got {self.k_epochs}")
-    if self.entropy_coef < 0:
-      raise ValueError(f"entropy_coef must be >= 0, got {self.entropy_coef}")
-    if self.value_coef < 0:
-      raise ValueError(f"value_coef must be >= 0, got {self.value_coef}")
-    if self.std_init <= 0:
-      raise ValueError(f"std_init must be positive, got {self.std_init}")
-    if self.std_min <= 0 or self.std_min > self.std_init:
-      raise ValueError(f"std_min must be in (0, std_init], got {self.std_min}")
-    if self.std_decay < 0:
-      raise ValueError(f"std_decay must be >= 0, got {self.std_decay}")
-    if self.std_decay_every < 1:
-      raise ValueError(f"std_decay_every must be >= 1, got {self.std_decay_every}")
-    if self.init not in networks.INITS:
-      raise ValueError(f"init must be one of {', '.join(networks.INITS)}, got {self.init!r}")
-    if self.mean_head not in MEAN_HEADS:
-      raise ValueError(f"mean_head must be one of {', '.join(MEAN_HEADS)}, "
-                       f"got {self.mean_head!r}")
-    if self.value_weighting not in VALUE_WEIGHTINGS:
-      raise ValueError(f"value_weighting must be one of {', '.join(VALUE_WEIGHTINGS)}, "
-                       f"got {self.value_weighting!r}")
 
 
 @struct.dataclass

@@ -24,8 +24,9 @@ from typing import Callable
 import jax
 import jax.numpy as jp
 
+from nonmono_jax.core.config import RELABEL_TIES as TIES  # which candidate wins an exact tie
+
 N_RANDOM = 8  # HIRO: 8 random candidates + the original goal + s_c - s_0
-TIES = ("original", "random")  # which candidate wins an exact tie (module doc)
 
 
 def goal_sequence(goal: jax.Array, states: jax.Array) -> jax.Array:

@@ -20,7 +20,7 @@ derives from its unbatched step counter, so under ``vmap`` over seeds it stays a
 from __future__ import annotations
 
 import dataclasses
-from typing import Callable, Sequence
+from typing import Callable
 
 import flax.linen as nn
 import jax
@@ -29,48 +29,9 @@ import optax
 from flax import struct
 
 from nonmono_jax.core import learning, networks
-from nonmono_jax.core.numbers import Numbers, traced
-
-TARGET_NOISES = ("sample", "batch")  # target smoothing: a draw per sample, or one per batch
-
-
-@dataclasses.dataclass(frozen=True)
-class TD3Config:
-  """TD3 hyperparameters; defaults are the paper's (docs/spec.md, section 2; both levels)."""
-
-  hidden: Sequence[int] = (300, 300)
-  lr_actor: float = traced(1e-4)
-  lr_critic: float = traced(1e-3)
-  gamma: float = traced(0.99)
-  tau: float = traced(5e-3)
-  batch_size: int = 100
-  policy_noise: float = traced(0.2)  # target smoothing noise std (absolute, as the HIRO port)
-  noise_clip: float = traced(0.5)
-  policy_delay: int = 1  # the paper's code: policy_freq = 1 (TD3's paper: 2)
-  expl_noise: float = traced(1.0)  # behaviour noise std before clipping (Low: N(0, 1) on torques)
-  buffer_size: int = 200_000  # a ring; the run presets size it to the run (never evicts)
-  target_smoothing: bool = True
-  target_noise: str = "sample"  # TARGET_NOISES: "batch" is the paper's code (one draw a batch)
-  init: str = "lecun"  # networks.INITS: "torch" is the paper's code (PyTorch's nn.Linear default)
-
-  def __post_init__(self):
-    for name in ("lr_actor", "lr_critic", "tau", "gamma"):
-      v = getattr(self, name)
-      if not 0 < v <= 1:
-        raise ValueError(f"{name} must be in (0, 1], got {v}")
-    for name in ("batch_size", "policy_delay", "buffer_size"):
-      if getattr(self, name) < 1:
-        raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
-    for name in ("policy_noise", "noise_clip", "expl_noise"):
-      if getattr(self, name) < 0:
-        raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
-    if not self.hidden or any(h < 1 for h in self.hidden):
-      raise ValueError(f"hidden must be positive layer sizes, got {self.hidden}")
-    if self.init not in networks.INITS:
-      raise ValueError(f"init must be one of {', '.join(networks.INITS)}, got {self.init!r}")
-    if self.target_noise not in TARGET_NOISES:
-      raise ValueError(f"target_noise must be one of {', '.join(TARGET_NOISES)}, "
-                       f"got {self.target_noise!r}")
+# declared with the agent's config, which imports no JAX
+from nonmono_jax.core.config import TD3Config  # noqa: F401
+from nonmono_jax.core.numbers import Numbers
 
 
 @struct.dataclass

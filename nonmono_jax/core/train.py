@@ -51,7 +51,6 @@ from jax.sharding import Mesh, NamedSharding, PartitionSpec as P
 from nonmono_jax.core import agent as agent_lib
 from nonmono_jax.core import numbers
 from nonmono_jax.core import metrics as metrics_lib
-from nonmono_jax.core.config import check_group
 
 
 def compiled_bytes(compiled) -> dict:
@@ -80,6 +79,9 @@ class Trainer:
   hp: Any = None
   # XLA's memory count of one device's compiled chunk (compiles it; compiled_bytes)
   program_bytes: Callable[[], dict] | None = None
+  # compile(states, t0): compiles the chunk for these states ahead of its first call (which
+  # then runs it), so that a caller can say how long compiling took
+  compile: Callable | None = None
 
   @property
   def num_lanes(self) -> int:
@@ -118,7 +120,7 @@ def make_group_trainer(env, configs: Sequence[agent_lib.AgentConfig], num_seeds:
                        compiler_options: Mapping[str, Any] | None = None) -> Trainer:
   """One program for ``configs`` (equal ``numbers.static_key``s, else a ValueError naming the
   fields): ``len(configs) * num_seeds`` lanes, each with its variant's ``Numbers``."""
-  key = check_group(list(configs))
+  key = numbers.check_group(list(configs))
   per_lane = jax.tree.map(lambda x: np.repeat(x, num_seeds, axis=0),
                           numbers.stack(list(configs)))
   return _make(env, key, per_lane, num_seeds, chunk_steps, devices, compiler_options,
@@ -181,9 +183,12 @@ def _make(env, config, per_lane, num_seeds, chunk_steps, devices, compiler_optio
 
   def program_bytes():
     return compiled_bytes(lower(jax.eval_shape(init, jax.random.PRNGKey(0))).compile())
+
+  def compile_for(states, t0):
+    lanes_chunk.lower(states, t0, hp).compile()
   return Trainer(
       agent=agent, num_seeds=num_seeds, chunk_steps=chunk_steps, mesh=mesh,
       init=init, chunk=chunk,
       evaluate=_with_step(jit(shard(local_evaluate, (P("seeds"), P(), P())))),
       variants=variants,
-      chunk_program=lanes_chunk, hp=hp, program_bytes=program_bytes)
+      chunk_program=lanes_chunk, hp=hp, program_bytes=program_bytes, compile=compile_for)

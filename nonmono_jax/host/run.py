@@ -23,14 +23,14 @@ import contextlib
 import dataclasses
 import math
 import os
-import signal
-import threading
 import time
 
 import jax
 import numpy as np
 
-from nonmono_jax.host import io, processes, runlock
+from nonmono_jax.core.config import differences
+from nonmono_jax.host import interrupts, io, processes, runlock
+from nonmono_jax.host.interrupts import Terminated  # noqa: F401 - SIGTERM, as Ctrl-C
 from nonmono_jax.host.programs import Programs
 from nonmono_jax.host.plan import Plan, load_run, new_run  # noqa: F401 - the run's library entry points
 from nonmono_jax.host.plan import to_json
@@ -134,20 +134,58 @@ def open_folder(plan: Plan, resume: bool = False):
     yield plan
     return
   _check_path(plan.out)
-  try:
-    os.makedirs(plan.out, exist_ok=resume)
-  except FileExistsError:
-    pass  # an empty folder: checked below with the lock held
-  except OSError as e:
-    raise BadFolder(f"--out {plan.out}: cannot create the folder ({e.strerror})") from None
+  if not resume:
+    check_new_out(plan.out)
   with contextlib.ExitStack() as stack:
-    try:
-      stack.enter_context(runlock.hold(plan.out))
-    except OSError as e:
-      raise BadFolder(f"{plan.out}: cannot lock the run folder ({e.strerror})") from None
-    _check_folder(plan, resume)
+    with interrupts.writing():  # a Ctrl-C waits for the folder and its config.json
+      try:
+        os.makedirs(plan.out, exist_ok=resume)
+      except FileExistsError:
+        pass  # an empty folder: checked below with the lock held
+      except OSError as e:
+        raise BadFolder(f"--out {plan.out}: cannot create the folder ({e.strerror})") from None
+      try:
+        stack.enter_context(runlock.hold(plan.out))
+      except OSError as e:
+        raise BadFolder(f"{plan.out}: cannot lock the run folder ({e.strerror})") from None
+      _check_folder(plan, resume)
     processes.barrier("run folder open")
     yield plan
+
+
+def new_or_continued(plan: Plan) -> tuple[Plan, bool]:
+  """(plan, resume): ``plan`` as new, or the run its folder already holds if that is the same
+  run (task, seed, size, physics, every variant's config), to continue: a notebook run twice
+  picks up where it stopped (a finished run trains nothing more) instead of failing. A
+  folder that holds another run is a BadFolder naming the first difference."""
+  if not os.path.exists(os.path.join(plan.out, "config.json")):
+    return plan, False
+  saved = load_run(plan.out, task=plan.task)
+  mine = {"task": plan.task, "seed": plan.seed, "spec": plan.spec, "physics": plan.physics,
+          "contacts": plan.contacts, "variants": list(plan.configs)}
+  theirs = {"task": saved.task, "seed": saved.seed, "spec": saved.spec,
+            "physics": saved.physics, "contacts": saved.contacts,
+            "variants": list(saved.configs)}
+  differ = [k for k in mine if mine[k] != theirs[k]] + [
+      f"{name} {', '.join(differences(plan.configs[name], saved.configs[name]))}"
+      for name in plan.configs if name in saved.configs
+      and plan.configs[name] != saved.configs[name]]
+  if differ:
+    raise BadFolder(f"{plan.out} holds another run (it differs in {differ[0]}): choose another "
+                    f"folder, or remove that one")
+  return saved, True
+
+
+def check_new_out(out: str) -> None:
+  """A new run's folder is absent or empty (a lock alone: a start that failed); else BadFolder
+  saying how to continue the run it holds."""
+  if not os.path.lexists(out):
+    return
+  if not os.path.isdir(out):
+    raise BadFolder(f"--out {out} exists and is not a folder")
+  if set(os.listdir(out)) - {runlock.NAME}:
+    raise BadFolder(f"--out {out} exists and is not empty (use --resume {out} to continue it, "
+                    f"or another --out)")
 
 
 def _check_path(out: str) -> None:
@@ -229,12 +267,7 @@ def _train(plan: Plan, names, trainer, ckpts, outputs, clock: Clock, log):
   multi-process run raises ``processes.ProcessLost``)."""
   spec, num_envs = plan.spec, plan.configs[names[0]].num_envs
   with processes.lost_peers():
-    start, states = _restore(trainer, names, ckpts, plan.seed, log)
-    if start:
-      log(f"{', '.join(names)}: resumed from step {start}")
-    for name in names:
-      for sink in outputs:
-        sink.begin(name, start * num_envs)
+    start, states = _start(plan, names, trainer, ckpts, outputs, log)
     timing = _Timing()
     for t0 in range(start, spec.steps, spec.chunk):
       # At least one chunk per process: a limit shorter than start-up + a chunk still advances.
@@ -242,18 +275,45 @@ def _train(plan: Plan, names, trainer, ckpts, outputs, clock: Clock, log):
         raise TimeLimit("; ".join(_stop_for_time(plan, n, c, t0, trainer.lanes(states, v))
                                   for v, (n, c) in enumerate(zip(names, ckpts))))
       states, results = _chunk(plan, names, trainer, states, t0, ckpts, timing)
-      for result in results:
-        for sink in outputs:
-          sink.write(result)
       step = t0 + spec.chunk
-      if step % spec.checkpoint_every == 0 or step == spec.steps:
-        for v, c in enumerate(ckpts):
-          c.save(step, trainer.lanes(states, v))
+      with interrupts.writing():  # a Ctrl-C waits for the chunk's rows and checkpoint
+        for result in results:
+          for sink in outputs:
+            sink.write(result)
+        if step % spec.checkpoint_every == 0 or step == spec.steps:
+          for v, c in enumerate(ckpts):
+            c.save(step, trainer.lanes(states, v))
       clock.progressed = True
-      if _INTERRUPTED.is_set():  # a Ctrl-C that JAX swallowed (raised in a GC callback)
-        raise (_RECEIVED or [KeyboardInterrupt])[0]
       timing.chunk_done(clock, spec.chunk * trainer.num_lanes * num_envs)
+      pace = timing.pace_line(plan, names, t0)
+      if pace:
+        log(pace)
+      interrupts.check()
       yield from results
+
+
+def _start(plan: Plan, names, trainer, ckpts, outputs, log):
+  """(step, states) to train from: restored (``_restore``), every sink begun there, and the
+  chunk compiled ahead of its first call, saying so and how long it took (init, restore and
+  compile); nothing compiled when the run is already at its end."""
+  label, spec = ", ".join(names), plan.spec
+  if not all((c.latest_step() or 0) >= spec.steps for c in ckpts):
+    log(f"{label}: compiling the training program ...")
+  t = time.monotonic()
+  start, states = _restore(trainer, names, ckpts, plan.seed, log)
+  if start:
+    log(f"{label}: resumed from step {start}")
+  for name in names:
+    for sink in outputs:
+      sink.begin(name, start * plan.configs[name].num_envs)
+  if start >= spec.steps:
+    log(f"{label}: already trained to step {start}, the run's end")
+    return start, states
+  cached = compile_chunk(trainer, states, start)
+  log(f"{label}: compiled in {duration(time.monotonic() - t)}"
+      + (" (from the compilation cache)" if cached else ""))
+  interrupts.check()
+  return start, states
 
 
 def _restore(trainer, names, ckpts, seed: int, log):
@@ -277,6 +337,19 @@ def _restore(trainer, names, ckpts, seed: int, log):
   return start, jax.tree.map(lambda *xs: jax.numpy.concatenate(xs), *parts)
 
 
+def compile_chunk(trainer, states, t0: int) -> bool:
+  """Compiles the trainer's chunk for ``states`` ahead of its first call (which then runs the
+  compiled program); whether XLA's persistent cache had it."""
+  hits = []
+  listener = lambda event, **kwargs: hits.append(1) if event.endswith("/cache_hits") else None
+  jax.monitoring.register_event_listener(listener)
+  try:
+    trainer.compile(states, t0)
+  finally:
+    jax.monitoring.unregister_event_listener(listener)
+  return bool(hits)
+
+
 @dataclasses.dataclass
 class _Timing:
   """A method's chunk times in this process: the latest chunk's wall time (for the clock,
@@ -286,6 +359,7 @@ class _Timing:
   chunk_s: float | None = None
   t_start: float | None = None
   steps_done: int = 0
+  said: tuple = ()  # the kinds of chunk whose pace was said: "warm-up", "training"
 
   def chunk_done(self, clock: Clock, env_steps: int) -> None:
     self.chunk_s = time.monotonic() - self.t_chunk
@@ -294,6 +368,43 @@ class _Timing:
       self.t_start = time.perf_counter()
     else:
       self.steps_done += env_steps
+
+  def pace_line(self, plan: Plan, names, t0: int) -> str | None:
+    """After the first chunk of its kind (warm-up, training) in this process: the time to the
+    end of the run at this chunk's pace, on this machine; None after the others."""
+    spec, config = plan.spec, plan.configs[names[0]]
+    kind = "warm-up" if t0 + spec.chunk <= config.warmup_steps else "training"
+    if kind in self.said or self.chunk_s is None:
+      return None
+    self.said += (kind,)
+    groups = plan.groups()
+    later = len(groups) - 1 - next(i for i, g in enumerate(groups) if names[0] in g)
+    per_run = -(-spec.steps // spec.chunk)
+    left = -(-(spec.steps - t0 - spec.chunk) // spec.chunk) + later * per_run
+    estimate = duration(left * self.chunk_s)
+    if not left:
+      return None
+    head = (f"{', '.join(names)}: a {kind} chunk of {spec.chunk} steps took "
+            f"{duration(self.chunk_s)}")
+    if kind == "warm-up":
+      return (f"{head} on this machine; the {left} chunks left take at least {estimate} "
+              f"(training chunks, with updates, are slower: estimated again after the warm-up, "
+              f"step {config.warmup_steps})")
+    return f"{head}; the {left} chunks left: about {estimate} on this machine at this pace"
+
+
+def duration(seconds: float) -> str:
+  """A wall time as a reader takes it in: 45 s, 12 min, 3 h 20 min, 2 d 5 h."""
+  s = max(int(round(seconds)), 0)
+  if s < 100:
+    return f"{s} s"
+  if s < 100 * 60:
+    return f"{round(s / 60)} min"
+  h, m = divmod(round(s / 60), 60)
+  if h < 48:
+    return f"{h} h {m} min" if m else f"{h} h"
+  d, h = divmod(h, 24)
+  return f"{d} d {h} h" if h else f"{d} d"
 
 
 def _chunk(plan: Plan, names, trainer, states, t0: int, ckpts, timing: _Timing):
@@ -357,39 +468,3 @@ def _stop_for_time(plan: Plan, method: str, ckpts: io.Checkpoints, t0: int, stat
   saved = "checkpointed" if t0 else "nothing of it run yet"
   return (f"{method}: stopped at step {t0} of {plan.spec.steps} for the time limit ({saved}); "
           f"continue with --resume {plan.out}")
-
-
-# --- Ctrl-C and SIGTERM -------------------------------------------------------------------------
-
-class Terminated(KeyboardInterrupt):
-  """SIGTERM (a batch scheduler's stop, ``kill``): handled as Ctrl-C is."""
-
-
-_INTERRUPTED = threading.Event()
-_SIGNALS = {signal.SIGINT: KeyboardInterrupt, signal.SIGTERM: Terminated}
-_RECEIVED: list = []  # the exception class of the signal remembered
-
-
-@contextlib.contextmanager
-def remembering_ctrl_c():
-  """SIGINT raises KeyboardInterrupt as usual, SIGTERM ``Terminated`` (one), and each is also
-  remembered: one that lands in a callback that swallows exceptions (JAX's garbage-collection
-  hook) stops the run at the end of the chunk instead of being lost."""
-  if threading.current_thread() is not threading.main_thread():
-    yield
-    return
-
-  def handler(signum, frame):
-    _RECEIVED[:] = [_SIGNALS[signum]]
-    _INTERRUPTED.set()
-    raise _SIGNALS[signum]
-
-  _INTERRUPTED.clear()
-  previous = {sig: signal.signal(sig, handler) for sig in _SIGNALS}
-  try:
-    yield
-  finally:
-    for sig, old in previous.items():
-      signal.signal(sig, old)
-    _INTERRUPTED.clear()  # a remembered Ctrl-C belongs to this run, not to the process's next
-    _RECEIVED.clear()

@@ -6,6 +6,7 @@
     JsonLines(out)           OUT/metrics.jsonl: those columns and every metric the program
                              computes (``train.reduce_chunk``'s keys), one line per seed and chunk
     TensorBoard(out)         OUT/tensorboard/<method>: means over seeds of both, S_E per seed
+    WandB(plan, project)     the same scalars to Weights & Biases, one W&B run per method
     Progress(plan, enabled)  a tqdm bar, or a line per chunk: S_E, mode shares, env steps/s
 
 ``begin(method, env_step)`` is where a resumed run drops what the files hold past the
@@ -19,6 +20,8 @@ import contextlib
 import json
 import math
 import os
+import sys
+import uuid
 
 import numpy as np
 
@@ -93,37 +96,112 @@ class JsonLines:
     pass
 
 
+def log_line(*parts, **_) -> None:
+  """``print`` (flushed), above the progress bar when one is drawn (``tqdm.write``)."""
+  from tqdm import tqdm
+  tqdm.write(" ".join(str(p) for p in parts))
+  sys.stdout.flush()
+
+
+def scalars(result) -> dict:
+  """A chunk's scalars by name, as TensorBoard and W&B take them: the mean over seeds of every
+  numeric column and every metric (a vector metric per component, ``name/i``), and S_E per
+  seed (``eval_success/seed<k>``)."""
+  rows, out = result.rows, {}
+  for col in io.COLUMNS[4:]:
+    values = [r[col] for r in rows if r[col] != ""]
+    if values:
+      out[col] = sum(values) / len(values)
+  for name, value in result.metrics.items():
+    mean = np.asarray(value, dtype=np.float64).mean(axis=0)
+    for i, v in np.ndenumerate(mean):
+      out[name + "".join(f"/{j}" for j in i)] = float(v)
+  for r in rows:
+    if r["eval_success"] != "":
+      out[f"eval_success/seed{r['seed']}"] = r["eval_success"]
+  return out
+
+
+# The optional loggers' packages, and how to get them (``check_available``).
+OPTIONAL = {"tensorboard": ("tensorboardX", "pip install 'nonmono-jax[tensorboard]'"),
+            "wandb": ("wandb", "pip install 'nonmono-jax[wandb]'")}
+
+
+def check_available(flag: str) -> None:
+  """A ValueError (one line, before the run starts) if ``--<flag>``'s package is missing."""
+  module, how = OPTIONAL[flag]
+  try:
+    __import__(module)
+  except ImportError:
+    raise ValueError(f"--{flag} needs the {module} package: {how}") from None
+
+
 class TensorBoard:
-  """Event files per method: the mean over seeds of every numeric column and every metric
-  (a vector metric per component), and S_E per seed."""
+  """Event files per method (``scalars``): the mean over seeds of every numeric column and
+  every metric, and S_E per seed."""
 
   def __init__(self, out: str):
     self.out, self.writer = out, None
 
   def begin(self, method: str, env_step: int) -> None:
     self.close()
-    from tensorboardX import SummaryWriter  # a dependency of brax
+    from tensorboardX import SummaryWriter  # the [tensorboard] extra (check_available)
     self.writer = SummaryWriter(os.path.join(self.out, "tensorboard", method))
 
   def write(self, result) -> None:
-    rows, step = result.rows, result.env_step
-    for col in io.COLUMNS[4:]:
-      values = [r[col] for r in rows if r[col] != ""]
-      if values:
-        self.writer.add_scalar(col, sum(values) / len(values), step)
-    for name, value in result.metrics.items():
-      mean = np.asarray(value, dtype=np.float64).mean(axis=0)
-      for i, v in np.ndenumerate(mean):
-        self.writer.add_scalar(name + "".join(f"/{j}" for j in i), float(v), step)
-    for r in rows:
-      if r["eval_success"] != "":
-        self.writer.add_scalar(f"eval_success/seed{r['seed']}", r["eval_success"], step)
+    for name, value in scalars(result).items():
+      self.writer.add_scalar(name, value, result.env_step)
     self.writer.flush()
 
   def close(self) -> None:
     if self.writer is not None:
       self.writer.close()
       self.writer = None
+
+
+class WandB:
+  """Weights & Biases: one W&B run per method (variant) in ``project``, grouped by the run
+  folder, with the method's config and the run's size as its config, and per chunk the
+  TensorBoard sink's scalars (``scalars``) at the env step. With ``WANDB_MODE=offline`` (no
+  account, no network) it writes ``OUT/wandb/offline-run-*`` only (``wandb sync`` uploads
+  them). A resumed run continues the same W&B runs (their ids in ``OUT/wandb/ids.json``); W&B
+  drops a value logged at a step it has passed, so chunks redone after a resume keep the
+  values first logged for them (metrics.csv is the record that a resume makes exact)."""
+
+  def __init__(self, plan, project: str):
+    import wandb  # the [wandb] extra (check_available)
+    self.wandb, self.plan, self.project, self.runs = wandb, plan, project, {}
+    self.folder = os.path.join(plan.out, "wandb")
+
+  def _id(self, method: str) -> str:
+    """The W&B run id of ``method``, made once per run folder and kept there."""
+    path = os.path.join(self.folder, "ids.json")
+    ids = io.read_json(path) if os.path.exists(path) else {}
+    if method not in ids:
+      ids[method] = uuid.uuid4().hex[:8]  # W&B's id format: 8 of [a-z0-9]
+      os.makedirs(self.folder, exist_ok=True)
+      io.write_json(path, ids)
+    return ids[method]
+
+  def begin(self, method: str, env_step: int) -> None:
+    if method in self.runs:
+      return
+    plan = self.plan
+    config = {"task": plan.task, "method": method, "preset": plan.preset, "seed": plan.seed,
+              "run": io.to_jsonable(plan.spec), "agent": io.to_jsonable(plan.configs[method])}
+    self.runs[method] = self.wandb.init(
+        project=self.project, id=self._id(method), resume="allow", dir=plan.out,
+        name=f"{os.path.basename(os.path.abspath(plan.out))}/{method}",
+        group=os.path.basename(os.path.abspath(plan.out)), job_type=plan.task, config=config,
+        reinit="create_new")
+
+  def write(self, result) -> None:
+    self.runs[result.method].log(scalars(result), step=result.env_step)
+
+  def close(self) -> None:
+    runs, self.runs = self.runs, {}
+    for r in runs.values():
+      r.finish()
 
 
 class Progress:
