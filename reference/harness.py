@@ -141,7 +141,7 @@ class Harness:
     self.envs_made = 0
     self.recording = None  # while evaluating: the list of each episode's last xyz
     self.evals = {}
-    self.window = {"reward": 0.0, "n": 0}
+    self.window = _new_window()
     self.clock = {"start": time.time(), "busy": 0.0, "mark": None, "mark_t": None,
                   "eval_mark": None, "eval_mark_t": None}
 
@@ -241,6 +241,7 @@ class Harness:
       self.window["n"] += 1
       return r
     hiro.intrinsic_reward_simple = summed_reward
+    hiro.off_policy_correction = self._observed_correction(hiro.off_policy_correction)
     hiro.save_checkpoint = self._save_checkpoint_call
     hiro.ExperienceBufferLow = _one_row_more(hiro.ExperienceBufferLow)
 
@@ -327,7 +328,7 @@ class Harness:
       state.restore(frame, blob)
       saved = blob["harness"]
       self.envs_made = saved["envs_made"]
-      self.window = saved["window"]
+      self.window = {**_new_window(), **saved["window"]}  # a checkpoint of an older harness
       self.evals = saved["evals"]
       self.mujoco_py.warning_counts.update(saved["warnings"])
       self.clock["wall_before"] = saved["wall"]
@@ -347,13 +348,35 @@ class Harness:
     self.clock[key_mark], self.clock[key_t], self.clock[key_busy] = now, self.t, 0.0
     return round(steps / seconds, 2) if seconds > 0 and steps > 0 else ""
 
+  def _observed_correction(self, correction):
+    """The code's ``off_policy_correction``, called at every segment's end with s_0 (the
+    state sequence's first), g_0 and s_c: the Low's subgoal statistics of the segment, summed
+    into the window (nothing drawn, nothing changed), then the code's own call."""
+    def observed(actor, action_sequence, state_sequence, goal_dim, goal, end_state, *rest):
+      import torch
+      with torch.no_grad():
+        s0 = state_sequence[0].detach().cpu()[:goal_dim]
+        g0, sc = goal.detach().cpu(), end_state.detach().cpu()[:goal_dim]
+        start, end = float(torch.norm(g0)), float(torch.norm(s0 + g0 - sc))
+      w = self.window
+      w["segments"] += 1
+      w["start"], w["distance"] = w["start"] + start, w["distance"] + end
+      w["reached"] += float(end <= 1.5)
+      w["progress"] += start - end
+      return correction(actor, action_sequence, state_sequence, goal_dim, goal, end_state,
+                        *rest)
+    return observed
+
   def _window_row(self, frame, t):
     local = frame.f_locals
-    n = self.window["n"]
+    n, w = self.window["n"], self.window
+    k = w["segments"]
     row = {
         "t": t, "step": t - self.config.start_timestep,
         "low_intrinsic_reward_mean": repr(self.window["reward"] / n) if n else "",
-        "low_reward_steps": n,
+        "low_reward_steps": n, "segments": k,
+        **{f"subgoal_{name}": repr(w[name] / k) if k else ""
+           for name in ("start", "distance", "reached", "progress")},
         "on_policy_count": local["on_policy_count"],
         "off_policy_count": local["off_policy_count"],
         "random_policy_count": local["random_policy_count"],
@@ -362,7 +385,7 @@ class Harness:
         "higher_success_rate": local["higher_success_rate"],
         "mujoco_warnings": sum(self.mujoco_py.warning_counts.values()),
         "train_steps_per_s": self._rate("mark", "mark_t", "busy"), "wall_s": self._wall()}
-    self.window = {"reward": 0.0, "n": 0}
+    self.window = _new_window()
     self.logs.window(row)
     print(f"t={t} step={row['step']} steps/s={row['train_steps_per_s']} "
           f"S_E={row['success_rate']} S_E(ppo)={row['higher_success_rate']} "
@@ -504,6 +527,13 @@ def _harness_commit():
   except (OSError, subprocess.CalledProcessError):
     return None
   return {"commit": head, "reference_dirty": bool(dirty)}
+
+
+def _new_window():
+  """The sums of a window: the Low's reward and steps; per segment (at its end, the code's
+  call of the correction) ||g_0||, ||g_c||, ||g_c|| <= 1.5 and ||g_0|| - ||g_c||."""
+  return {"reward": 0.0, "n": 0, "segments": 0, "start": 0.0, "distance": 0.0,
+          "reached": 0.0, "progress": 0.0}
 
 
 def _left_out(*args, **kwargs):

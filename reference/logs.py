@@ -18,7 +18,10 @@ EVAL_COLUMNS = (
 WINDOW_COLUMNS = (
     "t", "step", "low_intrinsic_reward_mean", "low_reward_steps", "on_policy_count",
     "off_policy_count", "random_policy_count", "episode_num_h", "success_rate",
-    "higher_success_rate", "mujoco_warnings", "train_steps_per_s", "wall_s")
+    "higher_success_rate", "mujoco_warnings", "train_steps_per_s", "wall_s",
+    # per segment ended in the window: the Low's subgoal at its start, ||g_0||, at its end,
+    # ||g_c||, whether ||g_c|| <= 1.5, and ||g_0|| - ||g_c|| (means); added 2026-12-05
+    "segments", "subgoal_start", "subgoal_distance", "subgoal_reached", "subgoal_progress")
 # Columns that measure time; they differ between runs and are left out of comparisons.
 TIMING = ("eval_s", "eval_ppo_s", "train_steps_per_s", "wall_s")
 
@@ -46,6 +49,24 @@ def _cut_jsonl(path, keep):
     f.writelines(lines)
 
 
+def _widen(path, columns):
+  """A file written by an older harness, whose header is the first of ``columns``: rewritten
+  with all of them, its rows' new columns empty, so that appended rows line up."""
+  if not os.path.exists(path) or os.path.getsize(path) == 0:
+    return
+  with open(path, newline="") as f:
+    rows = list(csv.reader(f))
+  header = tuple(rows[0])
+  if header == tuple(columns):
+    return
+  if header != tuple(columns[:len(header)]):
+    raise ValueError(f"{path}: its columns are not this harness's ({', '.join(header)})")
+  with open(path, "w", newline="") as f:
+    writer = csv.writer(f)
+    writer.writerow(columns)
+    writer.writerows(row + [""] * (len(columns) - len(header)) for row in rows[1:])
+
+
 class Logs:
   """The three files of a run folder, opened for appending after being cut back to ``t0``."""
 
@@ -62,6 +83,7 @@ class Logs:
 
   @staticmethod
   def _open_csv(path, columns):
+    _widen(path, columns)
     new = not os.path.exists(path) or os.path.getsize(path) == 0
     f = open(path, "a", newline="")
     writer = csv.DictWriter(f, columns)

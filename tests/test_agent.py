@@ -310,3 +310,12 @@ def test_trainer_chunks_match_the_plain_scan(runs):
                              (r.metrics["top/loss"][250:] * flag).sum(0) / flag.sum(0), rtol=1e-4)
   with pytest.raises(ValueError, match="num_seeds"):
     train.make_trainer(r.env, r.config, num_seeds=0, chunk_steps=10)
+
+
+def test_the_lows_subgoal_columns():
+  """At a segment's end: ||g_c||, the share within the Low's done distance 1.5, and the
+  progress ||g_0|| - ||g_c||, each averaged over the seed's envs."""
+  m = agent_lib._subgoals(jp.array([[3.0, 0.0, 0.0], [0.0, 4.0, 0.0]]),
+                          jp.array([[1.0, 0.0, 0.0], [0.0, 2.0, 0.0]]))
+  assert {k: float(v.value) for k, v in m.items()} == {
+      "low/subgoal_distance": 1.5, "low/subgoal_reached": 0.5, "low/subgoal_progress": 2.0}

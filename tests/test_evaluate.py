@@ -138,3 +138,4 @@ def test_one_call_runs_each_kind_from_the_same_starts():
   lone = jax.jit(lambda k: alone(low, jp.asarray(0.0), None, k))(jax.random.PRNGKey(1))
   assert float(lone.success) == float(out.success)  # the main kind's keys do not move
   assert float(lone.by_kind[0]) == 0.0 and float(lone.by_kind[2]) == 0.0
+

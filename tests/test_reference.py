@@ -169,6 +169,24 @@ def test_logs_are_cut_back_to_a_checkpoint(tmp_path):
   assert [x["_t"] for x in lines] == [500]
 
 
+def test_an_older_harness_windows_file_gains_the_new_columns(tmp_path):
+  """A run begun by the harness before the subgoal columns: its rows keep their values, the
+  new columns empty, and the resumed rows line up under the widened header."""
+  old = logs.WINDOW_COLUMNS[:13]
+  path = tmp_path / "windows.csv"
+  path.write_text(",".join(old) + "\n" + ",".join(["500", "200"] + ["1"] * 11) + "\n")
+  again = logs.Logs(str(tmp_path), 1000)
+  again.window({"t": 1000, "step": 700, "segments": 25, "subgoal_distance": 7.5})
+  again.close()
+  rows = logs.read_csv(path)  # (timing columns left out)
+  assert path.read_text().splitlines()[0] == ",".join(logs.WINDOW_COLUMNS)
+  assert rows[0]["low_intrinsic_reward_mean"] == "1" and rows[0]["subgoal_distance"] == ""
+  assert rows[1]["segments"] == "25" and rows[1]["subgoal_distance"] == "7.5"
+  path.write_text("t,something_else\n1,2\n")
+  with pytest.raises(ValueError, match="its columns are not this harness's"):
+    logs.Logs(str(tmp_path), 0)
+
+
 def test_patches_replace_one_exact_line(tmp_path):
   (tmp_path / "a.py").write_text("x = 1\n    y = np.argmax(z)\n")
   patch = patches.Patch("a.py", "y = np.argmax(z)", "y = 2", "a test")
@@ -301,3 +319,7 @@ def test_a_run_with_the_studys_settings_leaves_out_the_ppo_evaluation(tmp_path):
                       and 0 <= float(row["success_rate"]) <= 1 for row in rows)
   config = json.loads((out / "config.json").read_text())
   assert (config["eval"], config["physics"]) == ("batched-td3", "mujoco200")
+  windows = logs.read_csv(out / "windows.csv")
+  assert all(int(w["segments"]) == 25 and 0 <= float(w["subgoal_reached"]) <= 1
+             and float(w["subgoal_start"]) - float(w["subgoal_distance"])
+             == pytest.approx(float(w["subgoal_progress"]), abs=1e-9) for w in windows)

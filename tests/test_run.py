@@ -118,6 +118,7 @@ def test_metrics_csv_shows_the_low_and_each_evaluation_the_run_makes(old_run):
   assert rows and all(r[c] != "" for r in rows for c in io.LOW_COLUMNS)
   assert all(-100 < float(r["low_reward"]) < 0 and 0 <= float(r["low_subgoal_reached"]) <= 1
              for r in rows)
+  assert all(abs(float(r["low_subgoal_progress"])) < 20 for r in rows)
   evaluated = [r for r in rows if r["eval_success"] != ""]
   assert evaluated and all(r["eval_success_held"] == r["eval_success"] for r in evaluated)
   assert all(r["eval_success_requery"] == r["eval_success_ppo"] == "" for r in rows)

@@ -288,13 +288,16 @@ def _reset(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys) -> SeedSta
   return jax.lax.cond(clock.episode_end, reset, lambda s: s, state)
 
 
-def _subgoals(goal) -> dict:
-  """The Low's competence at a segment's end: the remaining offset to its subgoal, ||g_c||, and
-  whether it came within the Low's done distance (1.5), averaged over envs and segments."""
-  dist = jp.linalg.norm(goal, axis=-1)
+def _subgoals(start, end) -> dict:
+  """The Low's competence at a segment's end: the remaining offset to its subgoal, ||g_c||,
+  whether it came within the Low's done distance (1.5), and how much closer it got,
+  ||g_0|| - ||g_c|| (``start``: the goal emitted at s_0), averaged over envs and segments."""
+  dist = jp.linalg.norm(end, axis=-1)
   reached = (dist <= hierarchy.LOW_DONE_DISTANCE).astype(jp.float32)
+  progress = jp.linalg.norm(start, axis=-1) - dist
   return {"low/subgoal_distance": Metric.when(dist.mean(), 1.0),
-          "low/subgoal_reached": Metric.when(reached.mean(), 1.0)}
+          "low/subgoal_reached": Metric.when(reached.mean(), 1.0),
+          "low/subgoal_progress": Metric.when(progress.mean(), 1.0)}
 
 
 def _end_segment(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys, hp: Numbers):
@@ -317,7 +320,7 @@ def _end_segment(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys, hp: 
     state, decided = _count(state.replace(chooser=chooser, mode=mode), t + 1 >= warmup,
                             t + 1 >= p.chooser.live_from, "mode_decisions",
                             "mode_decisions_after_start")
-    m = {**m, **_counts("decisions", decided), **_subgoals(state.goal)}
+    m = {**m, **_counts("decisions", decided), **_subgoals(state.segment.goal, state.goal)}
     return _new_segments(p, state, state.env.obs, keys.goals, t + 1 < warmup, t,
                          hp.middle_goal_noise), m
 

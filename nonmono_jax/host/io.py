@@ -39,7 +39,8 @@ from nonmono_jax.host import processes
 
 LOSSES = ("low/critic_loss", "low/actor_loss", "middle/critic_loss", "middle/actor_loss",
           "middle_ppo/loss", "top/loss")
-LOW_COLUMNS = ("low_reward", "low_subgoal_distance", "low_subgoal_reached")
+LOW_COLUMNS = ("low_reward", "low_subgoal_distance", "low_subgoal_reached",
+               "low_subgoal_progress")
 COLUMNS = (
     ("task", "method", "seed", "env_step", "eval_success", "eval_distance", "eval_return",
      "train_reward", "train_return", "train_success", "train_distance")
@@ -55,7 +56,8 @@ COLUMNS = (
     + tuple(name.replace("/", "_") for name in LOSSES)
     # S_E of each evaluation kind (evaluate.KINDS), where the run evaluates it
     + tuple(f"eval_success_{kind}" for kind in EVAL_KINDS)
-    # the Low: mean reward per env step; at segment ends, ||g_c|| and whether it was <= 1.5
+    # the Low: mean reward per env step; at segment ends ||g_c||, whether it was <= 1.5 and
+    # ||g_0|| - ||g_c||
     + LOW_COLUMNS)
 
 
