@@ -20,8 +20,9 @@ R2. ours (the code's choices) at x = 1M, the IQM over seeds, against 0.6 (the fi
 R3. ours learns like the reference: each seed's late S_E (the mean of its evaluations with
     0.9M <= x <= 1M), ours' mean minus the reference's, against the equivalence margin 0.2;
 R4. the final distance to the target, late, the same difference (described);
-R5. the Low: its mean reward per env step over the 50K env steps up to x = 200K, 500K, 1M
-    (described; both sides log it);
+R5. the Low: its mean reward per env step, and its mean progress per segment towards its
+    subgoal (||g_0|| - ||g_c||), over the 50K env steps up to x = 200K, 500K, 1M (described;
+    both sides log them);
 R6. the modes: Middle decisions per mode from the end of warm-up to x = 1M (described: ours
     has the text's 250K starting mode, the code none).
 
@@ -49,6 +50,8 @@ MARGIN = 0.2  # R3: "like the reference" if the difference's interval lies withi
 PASS = 0.6  # the paper's headline: S_E above 0.6 at its 1M
 LOW_AT = (200_000, 500_000, 1_000_000)  # R5, each over the LOW_SPAN env steps up to it
 LOW_SPAN = 50_000
+LOW_COLUMNS = {"low_reward": "reward per env step",
+               "low_subgoal_progress": "progress per segment, ||g_0|| - ||g_c||"}
 MODES = plot.MODES
 # The reference's mode counts (the code's names: on-policy is the Middle PPO, off-policy TD3)
 REFERENCE_COUNTS = {"TD3": "off_policy_count", "PPO": "on_policy_count",
@@ -90,6 +93,7 @@ def reference_rows(folder: str) -> list[dict]:
     if int(r["step"]) > 0:
       rows.append({**base, "env_step": r["step"], "eval_success": "",
                    "low_reward": r["low_intrinsic_reward_mean"],
+                   "low_subgoal_progress": r.get("subgoal_progress", ""),
                    **{f"cum_decisions_{m}": r[c] for m, c in REFERENCE_COUNTS.items()}})
   return rows
 
@@ -195,7 +199,8 @@ def readings(rows, reps=stats.REPS) -> dict:
          "r2": _level_reading(rows, "ours", stats.iqm, reps), "late_done": late_done,
          "r3": _difference(rows, "eval_success", *LATE, reps) if late_done else None,
          "r4": _difference(rows, "eval_distance", *LATE, reps) if late_done else None,
-         "r5": {x: _difference(rows, "low_reward", x - LOW_SPAN + 1, x, reps) for x in LOW_AT
+         "r5": {(column, x): _difference(rows, column, x - LOW_SPAN + 1, x, reps)
+                for column in LOW_COLUMNS for x in LOW_AT
                 if _reached(rows, "ours", x) and _reached(rows, REFERENCE, x)},
          "r6": {m: _modes(rows, m) for m in ("ours", REFERENCE)}}
   if out["r3"] is not None:
@@ -235,8 +240,8 @@ def markdown(r: dict) -> str:
                f"{r3['reading'] if r3 else 'n/a (not reached by both)'} | {_diff_cell(r3)} |")
   lines.append(f"| R4. final distance to the target, late (described) | | "
                f"{_diff_cell(r['r4'])} |")
-  for x, d in r["r5"].items():
-    lines.append(f"| R5. the Low's reward per env step, {LOW_SPAN // 1000}K up to x = "
+  for (column, x), d in r["r5"].items():
+    lines.append(f"| R5. the Low's {LOW_COLUMNS[column]}, {LOW_SPAN // 1000}K up to x = "
                  f"{x // 1000}K (described) | | {_diff_cell(d)} |")
   for m, counts in r["r6"].items():
     if counts is not None:
