@@ -7,6 +7,7 @@ import datetime
 import json
 import os
 import platform
+import subprocess
 import sys
 from typing import Any
 
@@ -14,10 +15,20 @@ import jax
 
 from nonmono_jax.host.plan import host
 
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 RESULTS = os.path.join(os.path.dirname(__file__), "results")
 # Dotted overrides that time every step with all modes live: no warm-up, no starting mode,
 # evaluation never (timed apart).
 ALL_MODES_LIVE = {"warmup_steps": 0, "eval_every": 10**9, "top.starting_steps": 0}
+
+
+def export_revision(ref: str, folder: str) -> str:
+  """Git revision ``ref`` of this repository, exported into ``folder`` (made if missing)."""
+  os.makedirs(folder, exist_ok=True)
+  archive = subprocess.run(["git", "-C", ROOT, "archive", ref], check=True,
+                           capture_output=True).stdout
+  subprocess.run(["tar", "-x", "-C", folder], input=archive, check=True)
+  return folder
 
 
 def machine() -> dict:

@@ -41,14 +41,6 @@ def _time(argv: list[str], root: str, repeats: int) -> dict:
           "runs_s": [round(x, 3) for x in times]}
 
 
-def _checkout(ref: str, folder: str) -> str:
-  """``ref`` of this repository, exported into ``folder``."""
-  archive = subprocess.run(["git", "-C", ROOT, "archive", ref], check=True,
-                           capture_output=True).stdout
-  subprocess.run(["tar", "-x", "-C", folder], input=archive, check=True)
-  return folder
-
-
 def main(argv=None) -> None:
   p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
   p.add_argument("--repeats", type=int, default=5)
@@ -58,7 +50,7 @@ def main(argv=None) -> None:
   trees = {"this checkout": ROOT}
   with tempfile.TemporaryDirectory() as tmp:
     if args.ref:
-      trees[args.ref] = _checkout(args.ref, tmp)
+      trees[args.ref] = common.export_revision(args.ref, tmp)
     rows = {}
     for tree, root in trees.items():
       for case, case_argv in CASES.items():
