@@ -280,12 +280,14 @@ def _reset(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys) -> SeedSta
   ``middle_td3_first_state="reset"`` (the code) the reset state."""
   td3_from_reset = p.config.middle_td3_first_state == "reset"
 
-  def reset(state):
+  def reset(written):
     env = jax.vmap(p.env.reset)(jax.random.split(keys.reset, p.config.num_envs))
-    start = env.obs if td3_from_reset else state.segment_start
-    return state.replace(env=env, segment_start=start)
+    return env, env.obs if td3_from_reset else written[1]
 
-  return jax.lax.cond(clock.episode_end, reset, lambda s: s, state)
+  # Only what the reset writes goes through the cond (gates.py: a pass-through is a copy).
+  env, start = jax.lax.cond(clock.episode_end, reset, lambda w: w,
+                            (state.env, state.segment_start))
+  return state.replace(env=env, segment_start=start)
 
 
 def _subgoals(start, end) -> dict:
@@ -331,27 +333,26 @@ def _updates(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys, hp: Numb
   """Learning after warm-up, each level on its own clock."""
   t, live = clock.t, clock.live
 
-  def low_update(state):
-    new, m = p.low.update(state.low, state.low_buffer, keys.low, t, hp.low)
-    return state.replace(low=new), m
+  def low_update(low, buffer):
+    return p.low.update(low, buffer, keys.low, t, hp.low)
 
-  def middle_update(state):
-    new, m = p.middle.td3_update(state.middle, state.middle_buffer, state.low.params,
-                                 keys.middle, t, hp.middle)
-    return state.replace(middle=new), m
+  def middle_update(middle, buffer, low_params):
+    return p.middle.td3_update(middle, buffer, low_params, keys.middle, t, hp.middle)
 
-  def middle_ppo_update(state):
-    new, m = p.middle.explorer.update(state.middle_ppo, t, hp.middle_ppo)
-    return state.replace(middle_ppo=new), m
+  def middle_ppo_update(middle_ppo):
+    return p.middle.explorer.update(middle_ppo, t, hp.middle_ppo)
 
-  gates = [("low", live, low_update), ("middle", live & clock.segment_end, middle_update)]
+  low, m_low = gated(live, low_update, state.low, (state.low_buffer,))
+  middle, m_middle = gated(live & clock.segment_end, middle_update, state.middle,
+                           (state.middle_buffer, low.params))
+  state = state.replace(low=low, middle=middle)
+  metrics = {**level("low", m_low, live), **level("middle", m_middle, live & clock.segment_end)}
   if p.middle.explorer.trains:
     every = p.config.middle_ppo_every
-    gates.append(("middle_ppo", live & (t % every == every - 1), middle_ppo_update))
-  metrics = {}
-  for name, ran, fn in gates:
-    state, m = gated(ran, fn, state)
-    metrics.update(level(name, m, ran))
+    ran = live & (t % every == every - 1)
+    middle_ppo, m = gated(ran, middle_ppo_update, state.middle_ppo)
+    state = state.replace(middle_ppo=middle_ppo)
+    metrics.update(level("middle_ppo", m, ran))
   chooser, m = p.chooser.update(state.chooser, t, live, state.s_e, hp)
   return state.replace(chooser=chooser), {**metrics, **m}
 
@@ -360,16 +361,18 @@ def _evaluation(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys, hp: N
   """Middle TD3 + Low TD3 without noise every ``eval_every`` steps: S_E (evaluate.py)."""
   ran = clock.live & ((clock.t + 1) % p.config.eval_every == 0)
 
-  def evaluation(state):
+  def evaluation(written, state):
     ev = _evaluate(p, state, clock.t, keys.eval)
     kinds = {f"success_{k}": ev.by_kind[evaluate_lib.KINDS.index(k)]
              for k in p.evaluator.kinds}
-    return (state.replace(s_e=ev.success, eval_distance=ev.distance, eval_return=ev.return_,
-                          eval_by_kind=ev.by_kind),
+    return ((ev.success, ev.distance, ev.return_, ev.by_kind),
             {"success": ev.success, "distance": ev.distance, "return": ev.return_,
              "unstable": ev.unstable, **kinds})
 
-  state, m = gated(ran, evaluation, state)
+  written = (state.s_e, state.eval_distance, state.eval_return, state.eval_by_kind)
+  (s_e, distance, return_, by_kind), m = gated(ran, evaluation, written, (state,))
+  state = state.replace(s_e=s_e, eval_distance=distance, eval_return=return_,
+                        eval_by_kind=by_kind)
   return state, level("eval", m, ran)
 
 

@@ -11,18 +11,22 @@ import jax
 import jax.numpy as jp
 
 
-def gated(pred, fn, operand):
-  """``lax.cond(pred, fn, skip, operand)``: skip returns ``operand`` and zero outputs.
+def gated(pred, fn, operand, reads=()):
+  """``lax.cond(pred, fn, skip, operand, *reads)``: skip returns ``operand`` and zero outputs.
 
-  ``fn(operand) -> (operand', out)``; the zeros of ``out`` take its shapes from
-  ``jax.eval_shape``. ``fn`` is traced once: through ``jax.jit``, whose trace ``eval_shape``
+  ``fn(operand, *reads) -> (operand', out)``; the zeros of ``out`` take its shapes from
+  ``jax.eval_shape``. ``operand`` is what the branch writes, ``reads`` what it only reads:
+  give the branch no more than it writes as ``operand``, for every leaf that passes through a
+  ``cond`` unchanged is a buffer XLA copies, in the branch and again into the scan's carry
+  (a whole train state through the evaluation's gate was 9 % of an Ant step's time,
+  ``benchmarks.profile_step``). ``fn`` is traced once: through ``jax.jit``, whose trace ``eval_shape``
   makes and the ``cond`` branch reuses (tracing twice doubled the Python tracing of the
   evaluation's env rollout, about a minute for the MJX ant); XLA inlines the call.
   """
   fn = jax.jit(fn)
-  _, shapes = jax.eval_shape(fn, operand)
+  _, shapes = jax.eval_shape(fn, operand, *reads)
 
-  def skip(x):
+  def skip(x, *_):
     return x, jax.tree.map(lambda s: jp.zeros(s.shape, s.dtype), shapes)
 
-  return jax.lax.cond(pred, fn, skip, operand)
+  return jax.lax.cond(pred, fn, skip, operand, *reads)

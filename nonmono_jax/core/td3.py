@@ -151,20 +151,24 @@ def make_td3(obs_size: int, context_size: int, action_size: int, action_scale,
     critic, critic_opt_state, cm = learning.gradient_step(
         critic_loss, critic_opt, p.critic, state.critic_opt, p, batch, key, hp,
         lr=hp.lr_critic)
-    state = state.replace(params=p.replace(critic=critic), critic_opt=critic_opt_state)
+    p = p.replace(critic=critic)
 
-    def actor_step(state):
-      p = state.params
-      actor, opt, am = learning.gradient_step(actor_loss, actor_opt, p.actor, state.actor_opt,
+    def actor_step(written):  # only what it writes goes through the cond (gates.py)
+      actor, target_actor, target_critic, actor_opt_state = written
+      actor, opt, am = learning.gradient_step(actor_loss, actor_opt, actor, actor_opt_state,
                                               p, batch, lr=hp.lr_actor)
-      p = p.replace(actor=actor, target_actor=polyak(p.target_actor, actor, hp.tau),
-                    target_critic=polyak(p.target_critic, p.critic, hp.tau))
-      return state.replace(params=p, actor_opt=opt), am["actor_loss"]
+      return ((actor, polyak(target_actor, actor, hp.tau),
+               polyak(target_critic, p.critic, hp.tau), opt), am["actor_loss"])
 
-    def skip(state):
-      return state, jp.zeros((), jp.float32)
+    def skip(written):
+      return written, jp.zeros((), jp.float32)
 
-    state, a_loss = jax.lax.cond(update_actor, actor_step, skip, state)
+    written = (p.actor, p.target_actor, p.target_critic, state.actor_opt)
+    (actor, target_actor, target_critic, opt), a_loss = jax.lax.cond(
+        update_actor, actor_step, skip, written)
+    state = state.replace(params=p.replace(actor=actor, target_actor=target_actor,
+                                           target_critic=target_critic),
+                          critic_opt=critic_opt_state, actor_opt=opt)
     return state, {**cm, "actor_loss": a_loss}
 
   return TD3(config=config, action_scale=scale, init=init, act=act, explore=explore,
