@@ -6,7 +6,7 @@
     python -m experiments.antpush --top.alpha 0 0.4 0.7 --low.batch_size 256  # any field
     python -m experiments.pointpush --method ours --sweep top.alpha=0,0.4,0.7 0,0.2,0.35
 
-Methods (and sweep variants) whose programs coincide (``hyper.static_key``: ours and its
+Methods (and sweep variants) whose programs coincide (``lanes.static_key``: ours and its
 ablations; a sweep of traced numbers) run as lanes of one program; the others one after
 another; all into one folder (``nonmono_jax.host.io``): ``config.json``,
 ``metrics.csv`` (one row per method, seed and chunk), ``metrics.jsonl`` (every metric) and

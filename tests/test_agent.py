@@ -11,7 +11,7 @@ import pytest
 
 import envs
 from nonmono_jax.core import agent as agent_lib
-from nonmono_jax.core import hierarchy, homeostasis, modes, numbers, ppo, td3, train
+from nonmono_jax.core import hierarchy, homeostasis, modes, lanes, ppo, td3, train
 from nonmono_jax.core import config as config_lib
 from nonmono_jax.core.config import AgentConfig, TopConfig
 from nonmono_jax.core.switch import TriggerState
@@ -48,7 +48,7 @@ class Run:
     self.env = envs.make("PointPush", episode_length=EPISODE)
     self.config = small_config(method)
     self.agent = agent_lib.make_agent(self.env, self.config)
-    ag, hp = self.agent, numbers.of(self.config)
+    ag, hp = self.agent, lanes.of(self.config)
 
     def body(st, t):
       mode = st.mode
@@ -230,7 +230,7 @@ def test_gates_stay_branches_under_vmap(runs):
   """Each horizon gate is a ``cond`` in the vmapped step's jaxpr, not a select of both sides."""
   r = runs("ours")
   states = jax.vmap(r.agent.init)(r.keys)
-  hp = numbers.of(r.config)
+  hp = lanes.of(r.config)
   jaxpr = str(jax.make_jaxpr(jax.vmap(r.agent.step, in_axes=(0, None, None)))(
       states, jp.array(0), hp))
   # episode reset, segment end, Top horizon, Low, Middle, Middle PPO, Top PPO, evaluation, and

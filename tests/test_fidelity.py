@@ -15,7 +15,7 @@ import pytest
 import envs
 from nonmono_jax.core import buffers, evaluate, hierarchy, low as low_lib
 from nonmono_jax.core import middle as middle_lib
-from nonmono_jax.core import numbers, relabel, td3
+from nonmono_jax.core import lanes, relabel, td3
 from nonmono_jax.host import methods
 
 OBS, ACT = 7, 2
@@ -52,7 +52,7 @@ def test_policy_delay_one_updates_the_actor_on_every_update():
   buffer = buffers.add(buffer, tr)
   update = jax.jit(low.update)
   for t in range(3):
-    new, m = update(state, buffer, jax.random.PRNGKey(t), t, numbers.of(SMALL))
+    new, m = update(state, buffer, jax.random.PRNGKey(t), t, lanes.of(SMALL))
     assert m["actor_loss"] != 0
     assert not np.allclose(jax.tree.leaves(new.params.actor)[0],
                            jax.tree.leaves(state.params.actor)[0])

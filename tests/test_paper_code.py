@@ -14,7 +14,7 @@ import pytest
 import envs
 from nonmono_jax.core import agent as agent_lib
 from nonmono_jax.core import low as low_lib
-from nonmono_jax.core import hierarchy, middle as middle_lib, networks, numbers, ppo, td3
+from nonmono_jax.core import hierarchy, middle as middle_lib, networks, lanes, ppo, td3
 from nonmono_jax.core import top as top_lib
 from nonmono_jax.core.config import TopConfig
 from nonmono_jax.host import methods
@@ -112,7 +112,7 @@ def test_ppo_returns_end_at_episode_ends_unless_they_cross_them(cross):
   h = top.start(top.ppo.init(jax.random.PRNGKey(0)).params, jp.zeros(OBS),
                 jax.random.PRNGKey(1), True)
   h = top.accumulate(h, -30.0, 0.0)  # far from the target: done_m = 0
-  step, m = top.close(h, False, True, numbers.of(top_config))  # at an episode's end
+  step, m = top.close(h, False, True, lanes.of(top_config))  # at an episode's end
   assert float(m["done_m"]) == 0.0 and float(step.done) == (0.0 if cross else 1.0)
   config = methods.make_config("ours", "PointPush", {
       "low": SMALL, "middle": SMALL, "middle_ppo.hidden": (8,), "returns_cross_episodes": cross})
@@ -136,7 +136,7 @@ def code_agent():
       **{f"low.{k}": v for k, v in small.items()}, **{f"middle.{k}": v for k, v in small.items()},
       "scored_state": "current", "episode_start": "last"})
   agent = agent_lib.make_agent(env, config)
-  return env, agent, jax.jit(functools.partial(agent.step, hp=numbers.of(config)))
+  return env, agent, jax.jit(functools.partial(agent.step, hp=lanes.of(config)))
 
 
 def test_training_scores_the_state_before_the_step_and_keeps_the_last_goal(code_agent):
@@ -170,7 +170,7 @@ def first_state_agent():
       **{f"middle.{k}": v for k, v in small.items()}, "episode_start": "last",
       "middle_td3_first_state": "reset"})
   agent = agent_lib.make_agent(env, config)
-  return agent, jax.jit(functools.partial(agent.step, hp=numbers.of(config)))
+  return agent, jax.jit(functools.partial(agent.step, hp=lanes.of(config)))
 
 
 def test_the_middle_td3_starts_an_episode_at_the_reset_state_and_the_ppo_at_the_last(

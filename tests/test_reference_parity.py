@@ -38,7 +38,7 @@ import envs
 import reference
 from reference import fixtures
 from nonmono_jax.core import agent as agent_lib
-from nonmono_jax.core import hierarchy, low as low_lib, middle as middle_lib, numbers, ppo
+from nonmono_jax.core import hierarchy, low as low_lib, middle as middle_lib, lanes, ppo
 from nonmono_jax.core import modes as modes_lib
 from nonmono_jax.core import relabel, td3
 from nonmono_jax.core import top as top_lib
@@ -279,7 +279,7 @@ def test_td3_updates_follow_the_codes_step_updates(fx, level):
       pytest.approx(pp[4] * pp[5]), pytest.approx(pp[6]))
   assert c.target_smoothing == (level == "low") and c.policy_delay == 1
   learner, state = _td3(level, config)
-  update, shapes = _with_noise(learner, numbers.of(c))
+  update, shapes = _with_noise(learner, lanes.of(c))
   for k in range(fixtures.TD3_UPDATES):
     z = jp.asarray(fx[f"{level}/{k}/noise"].astype(np.float32))
     state, m = update(state, _td3_batch(fx, level, k), z)
@@ -313,7 +313,7 @@ def test_low_target_noise_is_one_draw_per_batch_in_the_code(fx):
   assert methods.make_config("ours", "PointPush").low.target_noise == "sample"
   config = ant_config({"low.target_noise": "sample"})
   learner, state = _td3("low", config)
-  update, shapes = _with_noise(learner, numbers.of(config.low))
+  update, shapes = _with_noise(learner, lanes.of(config.low))
   z = jp.asarray(fx["low/0/noise"].astype(np.float32))
   _, m = update(state, _td3_batch(fx, "low", 0), z)
   assert shapes == [(100, 8)]
@@ -322,11 +322,11 @@ def test_low_target_noise_is_one_draw_per_batch_in_the_code(fx):
   key = jax.random.PRNGKey(3)
   batch = _td3_batch(fx, "low", 0)
   per_sample = learner.critic_loss(state.params.critic, state.params, batch, key,
-                                   numbers.of(config.low))[1]["target_q"]
+                                   lanes.of(config.low))[1]["target_q"]
   batch_config = ant_config()
   batch_learner, _ = _td3("low", batch_config)
   per_batch = batch_learner.critic_loss(state.params.critic, state.params, batch, key,
-                                        numbers.of(batch_config.low))[1]["target_q"]
+                                        lanes.of(batch_config.low))[1]["target_q"]
   assert float(per_sample) != float(per_batch)
 
 
@@ -412,7 +412,7 @@ def test_middle_ppo_updates_follow_the_codes_train(fx):
   config = ant_config()
   explorer = middle_lib.make_middle(30, 8, TARGET, config, None).explorer
   state = _ppo_state(explorer.ppo, "ppo")
-  hp = numbers.of(config.middle_ppo)
+  hp = lanes.of(config.middle_ppo)
   assert float(explorer.std(0)) == pytest.approx(float(fx["ppo/0/std"]))
   assert float(explorer.std(250_000)) == pytest.approx(float(fx["ppo/1/std"]))
   update = jax.jit(explorer.ppo.update)
@@ -437,7 +437,7 @@ def test_middle_ppo_updates_follow_the_codes_train(fx):
 
 def _top(weighting):
   config = ant_config({"top.ppo.value_weighting": weighting})
-  return top_lib.make_top(30, TARGET, config.top, True), numbers.of(config).top
+  return top_lib.make_top(30, TARGET, config.top, True), lanes.of(config).top
 
 
 def _top_rollout(fx, k, alpha):
@@ -569,7 +569,7 @@ def _our_accounting(fx, modes_ran):
   start, steps = int(fx["switch/start"]), len(fx["switch/reward_h"])
   config = ant_config({"warmup_steps": start, "top.starting_steps": 0,
                        "top.alpha": (0.0, 0.5, 1.0), "top.ppo.hidden": (8,)})
-  hp = numbers.of(config)
+  hp = lanes.of(config)
   chooser = modes_lib.make_chooser(config, 30, TARGET, None)
   keys = agent_lib.InitKeys.split(jax.random.PRNGKey(0))
   state, mode = chooser.init(keys, jp.zeros((1, 30)), None)
@@ -654,7 +654,7 @@ def test_update_schedule_after_warm_up(fx):
   assert (config.c, config.middle_ppo_every, config.top.horizon, config.top.train_every) == (
       10, 30, 50, 400)
   agent = agent_lib.make_agent(envs.make("PointPush", episode_length=100), config)
-  step = jax.jit(functools.partial(agent.step, hp=numbers.of(config)))
+  step = jax.jit(functools.partial(agent.step, hp=lanes.of(config)))
   state = agent.init(jax.random.PRNGKey(0))
   ours = []
   for t in range(steps):

@@ -4,7 +4,7 @@ import jax
 import jax.numpy as jp
 import numpy as np
 
-from nonmono_jax.core import hierarchy, numbers, ppo
+from nonmono_jax.core import hierarchy, lanes, ppo
 from nonmono_jax.core.top import Horizon, make_top
 from nonmono_jax.host import methods
 
@@ -16,7 +16,7 @@ _ppo = ppo.PPOConfig(hidden=(8,), discrete=True)
 def _top(method):
   """The Top of ``method`` and its numbers (``hp``)."""
   config = methods.make_config(method, "AntPush", {"top.ppo": _ppo}).top
-  return make_top(OBS, TARGET, config), numbers.of(config)
+  return make_top(OBS, TARGET, config), lanes.of(config)
 
 
 def _horizon(mode, reward=-100.0, done_count=30.0, count=50.0):

@@ -17,8 +17,8 @@ in the phases of ``step``:
     evaluation of Middle TD3 + Low TD3 every 10K steps -> S_E
 
 The numbers a variant may change (the config fields declared ``traced``: alpha, S_O, the Top's
-two switches, rho, the goal noise, the learners' rates; ``numbers.py``) are read from ``hp``,
-the lane's ``Numbers``: ``step(state, t, hp)``, ``hp = numbers.of(config)``. Every gate is a
+two switches, rho, the goal noise, the learners' rates; ``lanes.py``) are read from ``hp``,
+the lane's ``Numbers``: ``step(state, t, hp)``, ``hp = lanes.of(config)``. Every gate is a
 function of the global step ``t``, which is not batched over seeds, so each stays a real
 ``lax.cond`` under ``vmap`` (docs/spec.md, section 6); only per-env data (modes, explore
 periods) is batched. Metrics are ``metrics.Metric``s that declare their chunk reduction.
@@ -38,7 +38,7 @@ from nonmono_jax.core import buffers, hierarchy, modes, td3
 from nonmono_jax.core import evaluate as evaluate_lib
 from nonmono_jax.core.config import AgentConfig
 from nonmono_jax.core.gates import gated
-from nonmono_jax.core.numbers import Numbers
+from nonmono_jax.core.lanes import Numbers
 from nonmono_jax.core.low import Low, make_low
 from nonmono_jax.core.metrics import Metric, level
 from nonmono_jax.core.middle import Explorer, Middle, NoExplorer, Segment, make_middle

@@ -11,7 +11,7 @@ anything compiles, with a message that names the field. This module imports no J
 command line reads it to build its flags and answer ``--help`` at once.
 
 Each field is declared once, where its class declares it: its type, its default, whether it
-is a lane's traced number (``traced(default)``, ``numbers.py``), its allowed values
+is a lane's traced number (``traced(default)``, ``lanes.py``), its allowed values
 (``choice(default, allowed)``, checked by ``check_choices``) and, in the comment beside or
 above it, what it means (the command line's help text, ``experiments/flags.py``).
 
@@ -77,7 +77,7 @@ TRACED, CHOICES = "traced", "choices"  # the metadata keys of the two declaratio
 
 def traced(default) -> Any:
   """A dataclass field whose value is a lane's number (a float, a bool as 0/1, or a tuple of
-  floats), read by the jitted step from ``numbers.Numbers`` rather than compiled in."""
+  floats), read by the jitted step from ``lanes.Numbers`` rather than compiled in."""
   return dataclasses.field(default=default, metadata={TRACED: True})
 
 

@@ -15,7 +15,7 @@ import jax
 import jax.numpy as jp
 
 from nonmono_jax.core import buffers, hierarchy, learning, td3
-from nonmono_jax.core.numbers import Numbers
+from nonmono_jax.core.lanes import Numbers
 
 
 @dataclasses.dataclass(frozen=True, eq=False)  # identity: it holds arrays

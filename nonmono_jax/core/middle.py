@@ -33,7 +33,7 @@ from flax import struct
 
 from nonmono_jax.core import buffers, hierarchy, learning, ppo, relabel, td3
 from nonmono_jax.core.config import AgentConfig
-from nonmono_jax.core.numbers import Numbers
+from nonmono_jax.core.lanes import Numbers
 
 
 @struct.dataclass

@@ -16,7 +16,7 @@ owns its state (``SeedState.chooser``: ``Fixed``, ``TopState`` or the trigger's
     decide(state, mode, decision, keys, hp) -> (state, mode, metrics)  at a Middle decision
     update(state, t, live, s_e, hp) -> (state, metrics)          its learner, on its own clock
 
-``hp`` is the lane's ``numbers.Numbers`` (the Top's alpha, S_O and its two switches, the
+``hp`` is the lane's ``lanes.Numbers`` (the Top's alpha, S_O and its two switches, the
 trigger's rho): numbers read at run time, so variants of one program differ in them.
 
 ``keys`` are the agent's named keys (``agent.InitKeys`` / ``agent.StepKeys``): the Top uses
@@ -37,7 +37,7 @@ from nonmono_jax.core import hierarchy, ppo, td3
 from nonmono_jax.core import metrics as metrics_lib
 from nonmono_jax.core.config import AgentConfig
 from nonmono_jax.core.gates import gated
-from nonmono_jax.core.numbers import Numbers
+from nonmono_jax.core.lanes import Numbers
 from nonmono_jax.core.switch import InformedSwitch, TriggerState, make_informed_switch
 from nonmono_jax.core.top import Horizon, Top, make_top
 

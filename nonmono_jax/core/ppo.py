@@ -48,7 +48,7 @@ from flax import struct
 from nonmono_jax.core import learning, networks
 # declared with the agent's config, which imports no JAX
 from nonmono_jax.core.config import MEAN_HEADS, PPOConfig  # noqa: F401
-from nonmono_jax.core.numbers import Numbers
+from nonmono_jax.core.lanes import Numbers
 
 _RETURN_EPS = 1e-7  # the port's normaliser epsilon
 _LOG_2PI_E = math.log(2.0 * math.pi * math.e)
@@ -236,7 +236,7 @@ def make_ppo(obs_size: int, action_size: int, config: PPOConfig = PPOConfig(),
 
   def update(state: PPOState, batch: Rollout, std, loss_weights, hp: Numbers):
     """K epochs on the rollout, each sample's loss times its ``loss_weights``; ``hp`` the
-    lane's numbers (``numbers.of(config)``: rates, gamma, clip, coefficients)."""
+    lane's numbers (``lanes.of(config)``: rates, gamma, clip, coefficients)."""
     rates = {"actor": hp.lr_actor, "critic": hp.lr_critic}
 
     def epoch(carry, _):

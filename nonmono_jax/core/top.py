@@ -22,9 +22,9 @@ import jax
 import jax.numpy as jp
 from flax import struct
 
-from nonmono_jax.core import buffers, hierarchy, numbers, ppo
+from nonmono_jax.core import buffers, hierarchy, lanes, ppo
 from nonmono_jax.core.config import TopConfig
-from nonmono_jax.core.numbers import Numbers
+from nonmono_jax.core.lanes import Numbers
 
 
 @struct.dataclass
@@ -82,7 +82,7 @@ class Top:
     h = Horizon(obs=jax.ShapeDtypeStruct((self.obs_size + hierarchy.GOAL_SIZE,), jp.float32),
                 mode=jax.ShapeDtypeStruct((), jp.int32), log_prob=scalar, reward=scalar,
                 done_count=scalar, count=scalar)
-    hp = numbers.of(self.config)
+    hp = lanes.of(self.config)
     return buffers.template(lambda h: self.close(h, False, False, hp)[0], h,
                             lead=(self.config.rollout_length,))
 

@@ -9,7 +9,7 @@
 
 A plan's configs are its variants, by name: a method (``ours``), or a method with sweep values
 (``ours+top.alpha=0,0.2,0.35``; ``variants`` keeps each one's method and values). Variants
-whose configs share a static key (``numbers.static_key``) are one group: one program of lanes.
+whose configs share a static key (``lanes.static_key``) are one group: one program of lanes.
 
 A new run is built from the presets (``methods``) and dotted overrides; a saved one is read
 back from its ``config.json`` (``config.config_from_dict``), not rebuilt: a preset default
@@ -35,7 +35,7 @@ import jax
 import envs
 from envs import ant_maze
 from envs import contacts as contacts_lib
-from nonmono_jax.core import numbers, validation
+from nonmono_jax.core import lanes, validation
 from nonmono_jax.core.config import AgentConfig, config_from_dict, differences, flatten, get
 from nonmono_jax.core.config import merge, missing_fields, override
 from nonmono_jax.host import io, methods
@@ -78,7 +78,7 @@ class Plan:
       return [[name] for name in self.configs]
     by_key: dict = {}  # static key -> its variants (dicts keep the plan's order)
     for name, config in self.configs.items():
-      by_key.setdefault(numbers.static_key(config), []).append(name)
+      by_key.setdefault(lanes.static_key(config), []).append(name)
     return list(by_key.values())
 
 
