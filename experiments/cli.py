@@ -50,7 +50,6 @@ from nonmono_jax.host.methods import task_of_module  # noqa: E402,F401 - for exp
 from nonmono_jax.host.plan import Plan  # noqa: E402,F401 - for callers of plan_from_args
 from nonmono_jax.host.run import Clock, NonFinite, TimeLimit  # noqa: E402,F401 - the run's, in tests
 
-EXIT_NON_FINITE = EXIT_FAILED
 # What --resume may change: how this process runs, not what the run is.
 RESUME_ALLOWED = ("resume", "time_limit", "no_progress", "tensorboard", "wandb", "distributed",
                   "coordinator", "num_processes", "process_id")

@@ -11,10 +11,11 @@ import pytest
 
 import envs
 from nonmono_jax.core import agent as agent_lib
-from nonmono_jax.core import hierarchy, homeostasis, modes, lanes, ppo, td3, train
+from nonmono_jax.core import hierarchy, homeostasis, lanes, ppo, td3, train
 from nonmono_jax.core import config as config_lib
 from nonmono_jax.core.config import AgentConfig, TopConfig
-from nonmono_jax.core.switch import TriggerState
+from nonmono_jax.core.modes.top import TopState
+from nonmono_jax.core.modes.trigger import TriggerState
 from nonmono_jax.host import methods
 
 C, HORIZON, TOP_EVERY, MID_PPO_EVERY = 5, 25, 50, 15
@@ -36,9 +37,9 @@ SMALL = {
 
 def small_config(method: str, overrides=None) -> AgentConfig:
   """The method's PointPush config at a test's size; the Middle keeps the method's smoothing."""
-  smoothing = methods.make_config(method, "PointPush").middle.target_smoothing
-  return methods.make_config(method, "PointPush", config_lib.merge(
-      SMALL, {"middle": _small, "middle.target_smoothing": smoothing}, overrides or {}))
+  smoothing = methods.build_config("paper", method, "PointPush")[0].middle.target_smoothing
+  return methods.build_config("paper", method, "PointPush", config_lib.merge(
+      SMALL, {"middle": _small, "middle.target_smoothing": smoothing}, overrides or {}))[0]
 
 
 class Run:
@@ -135,7 +136,7 @@ def test_buffers_and_update_clocks(runs, method):
     np.testing.assert_array_equal(m["horizon/updated"].sum(0), STEPS // HORIZON)
     assert not _same(r.mid.chooser.learner.params, r.end.chooser.learner.params)
   else:
-    assert not isinstance(r.end.chooser, modes.TopState) and "top/updated" not in m
+    assert not isinstance(r.end.chooser, TopState) and "top/updated" not in m
 
 
 def test_hiro_never_leaves_td3(runs):
@@ -246,17 +247,17 @@ def test_every_method_builds_from_its_preset():
   for method in methods.METHODS:
     config = small_config(method)
     agent_lib.make_agent(env, config)
-  ours = methods.make_config("ours", "AntFall")
+  ours = methods.build_config("paper", "ours", "AntFall")[0]
   assert ours.top.alpha == (-0.2, -0.2, 0.7) and ours.top.s_o == (0.6, 0.6, 0.9)
-  assert methods.make_config("ref-ppo", "AntPush").homeostasis.rho == 0.01
-  assert methods.make_config("ref-uniform", "AntPush").homeostasis.rho == 0.0001
-  assert methods.make_config("ref-uniform", "AntPush").explore_mode == "random"
-  nr = methods.make_config("ours-no-reward-mod", "AntPush").top
-  nl = methods.make_config("ours-no-loss-mod", "AntPush").top
-  nm = methods.make_config("ours-no-mods", "AntPush").top
+  assert methods.build_config("paper", "ref-ppo", "AntPush")[0].homeostasis.rho == 0.01
+  assert methods.build_config("paper", "ref-uniform", "AntPush")[0].homeostasis.rho == 0.0001
+  assert methods.build_config("paper", "ref-uniform", "AntPush")[0].explore_mode == "random"
+  nr = methods.build_config("paper", "ours-no-reward-mod", "AntPush")[0].top
+  nl = methods.build_config("paper", "ours-no-loss-mod", "AntPush")[0].top
+  nm = methods.build_config("paper", "ours-no-mods", "AntPush")[0].top
   assert (nr.reward_mod, nr.loss_mod, nl.reward_mod, nl.loss_mod) == (False, True, True, False)
   assert not nm.reward_mod and not nm.loss_mod
-  push = methods.make_config("ours", "AntPush")
+  push = methods.build_config("paper", "ours", "AntPush")[0]
   assert push.warmup_steps == 100_000 and push.top.starting_steps == 250_000
   assert push.c == 10 and push.top.horizon == 50 and push.low.hidden == (300, 300)
 
@@ -277,11 +278,11 @@ def test_bad_config_fails_before_compiling():
   with pytest.raises(ValueError, match="rho"):
     homeostasis.HomeostasisConfig(rho=2.0)
   with pytest.raises(ValueError, match="method must be one of"):
-    methods.make_config("sac", "AntPush")
+    methods.build_config("paper", "sac", "AntPush")[0]
   with pytest.raises(ValueError, match="task must be one of"):
-    methods.make_config("ours", "HalfCheetah")
+    methods.build_config("paper", "ours", "HalfCheetah")[0]
   with pytest.raises(ValueError, match="unknown AgentConfig field"):
-    methods.make_config("ours", "AntPush", {"horizon": 3})
+    methods.build_config("paper", "ours", "AntPush", {"horizon": 3})[0]
   with pytest.raises(ValueError, match="multiple of top.horizon"):
     agent_lib.make_agent(envs.make("PointMaze", episode_length=60), AgentConfig())
 

@@ -18,10 +18,10 @@ def _trainer(physics: str):
   env = envs.make("AntPush", episode_length=20, physics=physics)
   small = td3.TD3Config(hidden=(16, 16), batch_size=4, buffer_size=100)
   net = ppo.PPOConfig(hidden=(16,))
-  config = methods.make_config("ours", "AntPush", {
+  config = methods.build_config("paper", "ours", "AntPush", {
       "warmup_steps": 10, "eval_every": 20, "eval_episodes": 2, "low": small, "middle": small,
       "middle.target_smoothing": False, "middle_ppo": net, "top.horizon": 10,
-      "top.train_every": 20, "top.starting_steps": 0, "top.ppo": net, "top.ppo.discrete": True})
+      "top.train_every": 20, "top.starting_steps": 0, "top.ppo": net, "top.ppo.discrete": True})[0]
   return train.make_trainer(env, config, num_seeds=2, chunk_steps=20)
 
 

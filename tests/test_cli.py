@@ -367,8 +367,11 @@ def test_render_picks_the_best_and_the_worst_seed(reference, tmp_path, capsys):
 def test_widen_keeps_the_paper_per_env_step():
   from nonmono_jax.host import methods
 
-  config, spec = methods.make_preset("paper", "ours", "AntPush")
-  wide, wspec = methods.widen(config, spec, 64, 8)
+  def widen(envs_per_seed, grad_steps=None):
+    return methods.build_config("paper", "ours", "AntPush", widen={
+        "envs_per_seed": envs_per_seed, "grad_steps": grad_steps})
+
+  wide, wspec = widen(64, 8)
   assert (wide.num_envs, wide.low_updates, wide.middle_updates) == (64, 8, 8)
   # gradient samples per env step: 8 x 800 per 64 env steps = the paper's 100 per env step
   assert wide.low.batch_size == wide.middle.batch_size == 800
@@ -378,12 +381,12 @@ def test_widen_keeps_the_paper_per_env_step():
   assert wspec.steps * 64 >= 3_150_000 and wspec.steps % wspec.chunk == 0
   assert wspec.checkpoint_every % wspec.chunk == 0
   assert (wide.c, wide.top.horizon, wide.top.train_every) == (10, 50, 400)  # per env
-  exact, _ = methods.widen(config, spec, 16)
+  exact, _ = widen(16)
   assert (exact.low_updates, exact.low.batch_size) == (16, 100)  # U = E: the paper's updates
   with pytest.raises(ValueError, match="--grad-steps must be in"):
-    methods.widen(config, spec, 16, 32)
+    widen(16, 32)
   with pytest.raises(ValueError, match="--envs-per-seed must be >= 1"):
-    methods.widen(config, spec, 0)
+    widen(0)
 
 
 def test_a_widened_run_resumes_with_its_saved_plan(tmp_path):

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from nonmono_jax.core import lanes, ppo
+from nonmono_jax.core.modes.top import loss_weights
 
 SMALL = (16, 16)
 
@@ -136,14 +137,6 @@ def test_gaussian_log_prob_is_a_normal_density(head):
   np.testing.assert_allclose(logp, ref, rtol=1e-5)
 
 
-def test_top_loss_weights():
-  modes = jp.array([0, 1, 2, 0])
-  w = ppo.top_loss_weights(modes, 0.3)
-  np.testing.assert_allclose(w, [0.7, 1.3, 1.3, 0.7], rtol=1e-6)
-  w = ppo.top_loss_weights(modes, jp.array([0.1, 0.2, 0.3, 0.4]), td3_mode=2)
-  np.testing.assert_allclose(w, [1.1, 1.2, 0.7, 1.4], rtol=1e-6)
-
-
 def test_gaussian_std_schedule():
   cfg = ppo.PPOConfig()
   std = jax.jit(ppo.gaussian_std, static_argnums=1)
@@ -199,7 +192,7 @@ def test_loss_weights_scale_the_gradient():
   assert set(m) == {"loss", "policy_loss", "value_loss", "entropy", "approx_kl",
                     "clip_fraction"}
   # Adam ignores a uniform scale, so double the weight of some samples only
-  weights = ppo.top_loss_weights(jp.arange(8) % 3, 0.5)
+  weights = loss_weights(jp.arange(8) % 3, 0.5)
   s_w, _ = update(state, batch, 0.0, weights)
   assert not _leaves_equal(s_w.params, s_ones.params)
   s_zero, _ = update(state, batch, 0.0, jp.zeros((8,)))

@@ -18,7 +18,7 @@ from tests_support import ROOT, TINY_OVERRIDES, TINY_RUN, TINY_SIZE
 # --- one way to override ------------------------------------------------------------------------
 
 def test_a_dotted_path_changes_that_field_and_keeps_its_neighbours():
-  base = methods.make_config("ours", "AntFall")
+  base = methods.build_config("paper", "ours", "AntFall")[0]
   config = config_lib.override(base, {"top.horizon": 100, "middle.target_smoothing": True})
   assert config.top.horizon == 100 and config.middle.target_smoothing
   assert config.top.alpha == base.top.alpha == (-0.2, -0.2, 0.7)  # not wiped by "top.*"
@@ -32,7 +32,7 @@ def test_a_dotted_path_changes_that_field_and_keeps_its_neighbours():
   config = config_lib.override(base, {"low": small, "low.batch_size": 2})
   assert config.low.hidden == (8,) and config.low.batch_size == 2
   assert config_lib.merge({"low.hidden": (64,)}, {"low": small}) == {"low": small}
-  assert methods.make_config("hiro", "PointMaze", {"low": small}).low == small
+  assert methods.build_config("paper", "hiro", "PointMaze", {"low": small})[0].low == small
 
 
 @pytest.mark.parametrize("overrides,message", [
@@ -44,7 +44,7 @@ def test_a_dotted_path_changes_that_field_and_keeps_its_neighbours():
 ])
 def test_a_bad_override_names_the_full_dotted_field(overrides, message):
   with pytest.raises(ValueError) as e:
-    methods.make_config("ours", "PointMaze", overrides)
+    methods.build_config("paper", "ours", "PointMaze", overrides)[0]
   assert message in str(e.value)
 
 
@@ -52,7 +52,7 @@ def test_config_json_inverts_for_every_method_task_and_preset():
   for preset in methods.PRESETS:
     for task in methods.TASKS:
       for method in methods.METHODS:
-        config, _ = methods.make_preset(preset, method, task)
+        config, _ = methods.build_config(preset, method, task)
         saved = json.loads(json.dumps(io.to_jsonable(config)))
         assert config_lib.config_from_dict(saved, config_lib.AgentConfig()) == config
         assert not config_lib.missing_fields(saved, config)
@@ -338,7 +338,7 @@ def test_the_task_registry_names_each_task_once():
     module = importlib.import_module(f"experiments.{task.lower()}")
     assert methods.task_of_module(module.__name__) == task
     for name in methods.PRESETS:
-      methods.make_preset(name, "ours", task)
+      methods.build_config(name, "ours", task)
   assert methods.TASKS["PointPush"].random_success == 0.004
   with pytest.raises(ValueError, match="no task named 'antswim'"):
     methods.task_of_module("experiments.antswim")
@@ -353,7 +353,7 @@ def test_fields_added_since_a_run_keep_the_behaviour_it_ran_with():
   assert (config.eval_goal, config.eval_extra, config.middle_td3_first_state,
           config.warmup_goal) == ("held", (), "last", "uniform")
   assert config.episode_start == "last"  # what it saved stays
-  today = methods.make_config("ours", "AntPush")
+  today = methods.build_config("paper", "ours", "AntPush")[0]
   assert (today.eval_goal, today.middle_td3_first_state) == ("requery", "reset")
   assert any("has no " in w and "middle_td3_first_state" in w
              and "the behaviour before they were added" in w for w in plan.warnings)
@@ -373,7 +373,7 @@ def test_a_checkpoint_without_the_later_state_fields_is_filled_as_its_code_ran()
   import envs
   from nonmono_jax.core import agent as agent_lib
 
-  config = methods.make_config("ours", "PointMaze", {**TINY_OVERRIDES})
+  config = methods.build_config("paper", "ours", "PointMaze", {**TINY_OVERRIDES})[0]
   agent = agent_lib.make_agent(envs.make("PointMaze", episode_length=100), config)
   state = jax.vmap(agent.init)(jax.random.split(jax.random.PRNGKey(0), 2))
   n = len(jax.tree.leaves(state))

@@ -20,8 +20,8 @@ STEPS, CHUNK, SEEDS, EPISODE = 800, 400, 2, 100
 
 
 def tiny(method, overrides=None):
-  config = methods.make_config(method, "PointMaze", {**TINY_OVERRIDES, **(overrides or {})})
-  return methods.size_buffers(config, STEPS)
+  return methods.build_config("paper", method, "PointMaze", {**TINY_OVERRIDES, **(overrides or {})},
+                              run={"steps": STEPS})[0]
 
 
 def _run(trainer):

@@ -37,12 +37,12 @@ from envs import ant_maze
 from envs import contacts as contacts_lib
 from nonmono_jax.core import lanes, validation
 from nonmono_jax.core.config import AgentConfig, config_from_dict, differences, flatten, get
-from nonmono_jax.core.config import merge, missing_fields, override
+from nonmono_jax.core.config import missing_fields, override
 from nonmono_jax.host import io, methods
 
 PACKAGES = ("jax", "jaxlib", "mujoco", "mujoco-mjx", "brax", "flax", "optax", "orbax-checkpoint",
             "numpy", "nonmono-jax")
-RUN_FIELDS = tuple(f.name for f in dataclasses.fields(methods.RunSpec))
+RUN_FIELDS = methods.RUN_FIELDS
 
 
 @dataclasses.dataclass
@@ -90,7 +90,7 @@ def new_run(task: str, method_names, preset: str = "paper", out: str | None = No
             sweep: dict | None = None, physics: str | None = None,
             contacts: str | None = None) -> Plan:
   """The checked plan of a new run: the presets of ``method_names`` on ``task``, widened
-  (``methods.widen``), with the dotted ``overrides`` and the run size changes ``run``
+  (``methods.widen_layer``), with the dotted ``overrides`` and the run size changes ``run``
   (``steps``, ``seeds``, ``chunk``, ``checkpoint_every``, ``episode_length``); replay buffers
   sized for the run unless an override gives a size. ``sweep`` (dotted path -> list of
   values; several paths: their grid) makes each method one variant per value. ``physics``:
@@ -105,15 +105,16 @@ def new_run(task: str, method_names, preset: str = "paper", out: str | None = No
   validation.check_value("--seed", seed)
   widen = {"envs_per_seed": envs_per_seed, "grad_steps": grad_steps}
 
-  def configured(variants):
-    return {name: build_config(preset, v["method"], task, {**overrides, **v["overrides"]},
-                               run or {}, widen) for name, v in variants.items()}
+  def build(v):
+    return methods.build_config(preset, v["method"], task, {**overrides, **v["overrides"]}, run,
+                                widen)
 
-  variants = sweep_variants(method_names, sweep or {})
-  built = configured(variants)
-  if sweep:
-    variants = _read_only(variants, {name: c for name, (c, _) in built.items()}, sweep)
-    built = configured(variants)
+  points = sweep_variants(method_names, sweep or {})
+  built = {name: build(v) for name, v in points.items()}
+  variants = _read_only(points, {name: c for name, (c, _) in built.items()}, sweep or {})
+  # a variant that keeps every swept value is its grid point, built already; one that drops
+  # values its method does not read (HIRO in a sweep of top.alpha) is built without them
+  built = {name: built[name] if name in built else build(v) for name, v in variants.items()}
   spec = next(iter(built.values()))[1]
   configs = {name: c for name, (c, _) in built.items()}
   check_plan(task, spec, configs)
@@ -207,60 +208,6 @@ def _named(value) -> str:
   return f"{value:g}" if isinstance(value, float) else str(value)
 
 
-def build_config(preset: str, method: str, task: str, overrides: dict, run: dict,
-                 widen: dict) -> tuple[AgentConfig, methods.RunSpec]:
-  """(config, run size) in one pass. The run size first: the preset's, widened
-  (``widen["envs_per_seed"]``, ``methods.widen_layer``), then ``run``'s changes. Then the
-  config, ``override`` applied once to ``AgentConfig()`` with the dotted layers merged in
-  order: the preset's (task, method, preset), the widening, replay buffers sized for the run
-  (``methods.buffer_sizes``, from the merged c and num_envs), the user's ``overrides`` (so a
-  buffer size given there wins)."""
-  layers, spec = methods.preset_layers(preset, method, task)
-  wide = {}
-  if widen.get("envs_per_seed") is not None:
-    wide, spec = methods.widen_layer(override(AgentConfig(), layers), spec,
-                                     widen["envs_per_seed"], widen.get("grad_steps"))
-  spec = _resized(spec, run)
-  given = merge(layers, wide, overrides)
-  value = lambda path: given.get(path, get(AgentConfig(), path))
-  c, num_envs = value("c"), value("num_envs")
-  valid = all(isinstance(v, int) and v >= 1 for v in (c, num_envs))  # else the config says so
-  sized = methods.buffer_sizes(spec.steps, c, num_envs) if valid else {}
-  config = _explained(override, overrides, AgentConfig(), merge(layers, wide, sized, overrides))
-  return config, spec
-
-
-def _resized(spec: methods.RunSpec, run: dict) -> methods.RunSpec:
-  unknown = set(run) - set(RUN_FIELDS)
-  if unknown:
-    raise ValueError(f"unknown run field(s) {sorted(unknown)}; valid: {', '.join(RUN_FIELDS)}")
-  changes = {k: v for k, v in run.items() if v is not None}
-  if "chunk" in changes and "checkpoint_every" not in changes:
-    changes["checkpoint_every"] = max(changes["chunk"], spec.checkpoint_every // changes["chunk"]
-                                      * changes["chunk"])
-  return dataclasses.replace(spec, **changes)
-
-
-def _explained(fn, flat: dict, *args):
-  """``fn(*args)``; a ValueError about one field that another, user-set one caused (``--c 7``
-  breaking ``middle_ppo_every``) also names the user's overrides it mentions."""
-  try:
-    return fn(*args)
-  except ValueError as e:
-    msg = str(e)
-    subject = msg.split(" ")[0]
-    mentioned = [n for n in flat if n != subject and (f" {n} " in msg or f" {n}:" in msg
-                                                      or f"{n} (" in msg)]
-    if mentioned:
-      given = ", ".join(f"--{n} {_show(flat[n])}" for n in mentioned)
-      msg += f" (from {given}: change {subject} too, or that flag)"
-    raise ValueError(msg) from None
-
-
-def _show(value) -> str:
-  return " ".join(map(str, value)) if isinstance(value, (list, tuple)) else str(value)
-
-
 # --- checks before anything compiles -------------------------------------------------------------
 
 def check_plan(task: str, spec: methods.RunSpec, configs: dict) -> None:
@@ -274,10 +221,9 @@ def check_plan(task: str, spec: methods.RunSpec, configs: dict) -> None:
   if spec.checkpoint_every % spec.chunk:
     raise ValueError(f"--checkpoint-every ({spec.checkpoint_every}) must be a multiple of "
                      f"--chunk ({spec.chunk})")
-  env = envs.make(task, episode_length=spec.episode_length)
   for method, config in configs.items():
     validation.check(config)
-    config.check_env(env)
+    config.check_env(spec.episode_length)
     validation.check_value(f"--steps x num_envs of {method}", spec.steps * config.num_envs)
   if spec.seeds % jax.device_count():
     across = (f": {jax.process_count()} processes x {jax.local_device_count()}"
@@ -466,7 +412,7 @@ def _saved_config(payload, name: str, spec, overrides: dict, widen: dict):
   variant = payload.get("variants", {}).get(name, {"method": name, "overrides": {}})
   overrides = {**overrides, **flatten(variant["overrides"])}
   try:
-    today, _ = build_config(payload["preset"], variant["method"], payload["task"], overrides,
+    today, _ = methods.build_config(payload["preset"], variant["method"], payload["task"], overrides,
                             dataclasses.asdict(spec), widen)
   except ValueError as e:
     today, notes = None, [f"cannot be rebuilt from today's presets ({e}); config.json is used"]
