@@ -14,7 +14,7 @@ import jax
 
 from nonmono_jax.core.config import AgentConfig, get
 from nonmono_jax.host import methods
-from nonmono_jax.host.plan import host
+from nonmono_jax.host.provenance import host
 
 RESULTS = os.path.join(os.path.dirname(__file__), "results")
 # Dotted overrides that time every step with all modes live: no warm-up, no starting mode,

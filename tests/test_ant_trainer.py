@@ -11,7 +11,7 @@ import pytest
 
 import envs
 from nonmono_jax.core import ppo, td3, train
-from nonmono_jax.host import io, methods
+from nonmono_jax.host import checkpoints, methods
 
 
 def _trainer(physics: str):
@@ -57,7 +57,7 @@ def test_c_physics_checkpoint_resumes_bit_for_bit(c_trainer, tmp_path):
   straight, _ = c_trainer.chunk(straight, 0)
   straight, m_straight = c_trainer.chunk(straight, 20)
   states, _ = c_trainer.chunk(c_trainer.init(jax.random.PRNGKey(1)), 0)
-  ckpts = io.Checkpoints(str(tmp_path / "ckpt"))
+  ckpts = checkpoints.Checkpoints(str(tmp_path / "ckpt"))
   ckpts.save(20, states)
   like = jax.eval_shape(c_trainer.init, jax.random.PRNGKey(0))
   step, restored = ckpts.restore_newest(like)

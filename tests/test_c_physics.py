@@ -2,6 +2,8 @@
 host is exact, a simulation does not depend on the batch it is stepped in, instability is
 flagged, and the motion is MJX's (the accelerator path) within stated tolerances."""
 
+from types import SimpleNamespace
+
 import jax
 import jax.numpy as jp
 import mujoco
@@ -105,10 +107,11 @@ def test_unstable_simulation_is_flagged(push, tmp_path, monkeypatch):
   s = jax.jit(jax.vmap(push.step))(s0, jp.zeros((2, 8)))
   np.testing.assert_array_equal(np.asarray(jax.vmap(push.unstable)(s)), [0.0, 1.0])
   # The trainer's check names the lane and where (run.first_unstable).
-  metrics = {"physics/unstable": np.array([0.0, 0.0, 3.0]), "eval/unstable": np.zeros(3)}
-  assert run.first_unstable(metrics) == (2, "training")
-  assert run.first_unstable({"eval/unstable": np.array([0.0, 1.0])}) == (1, "evaluation")
-  assert run.first_unstable({"physics/unstable": np.zeros(2)}) is None
+  chunk = lambda training, evaluation: SimpleNamespace(
+      unstable_steps=np.array(training), unstable_evaluation=np.array(evaluation))
+  assert run.first_unstable(chunk([0.0, 0.0, 3.0], [0.0, 0.0, 0.0])) == (2, "training")
+  assert run.first_unstable(chunk([0.0, 0.0], [0.0, 1.0])) == (1, "evaluation")
+  assert run.first_unstable(chunk([0.0, 0.0], [0.0, 0.0])) is None
 
 
 def test_physics_option_is_checked_and_resolved():

@@ -11,7 +11,7 @@ import envs
 from nonmono_jax.core import lanes, train
 from nonmono_jax.core.config import AgentConfig
 from nonmono_jax.core.lanes import check_group
-from nonmono_jax.host import methods, run, sinks
+from nonmono_jax.host import folder, methods, run, sinks
 from nonmono_jax.host import plan as plan_lib
 from tests.tests_support import TINY_OVERRIDES
 
@@ -154,7 +154,7 @@ def test_a_run_from_before_variants_resumes_its_methods_one_after_another(tmp_pa
   """Its methods may stand at different steps: they keep running alone, as they ran."""
   with run.open_folder(_plan(tmp_path)):
     pass
-  payload = plan_lib.read_config(str(tmp_path))
+  payload = folder.read_config(str(tmp_path))
   del payload["grouped"], payload["variants"]
   assert plan_lib.from_json(payload, str(tmp_path)).groups() == [["ours"], ["ours-no-mods"]]
 

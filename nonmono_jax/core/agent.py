@@ -67,7 +67,8 @@ class SeedState:
   eval_distance: jax.Array  # and its mean final distance to the target
   eval_return: jax.Array  # and its mean episode return
   key: jax.Array
-  # Fields added later go last, so that older checkpoints restore by leaf position (io.py).
+  # Fields added later go last, so that older checkpoints restore by leaf position
+  # (host/checkpoints.py).
   segment_start: jax.Array  # (E, obs) the Middle TD3's s_0 of the current segment (middle.py)
   eval_by_kind: jax.Array  # (3,) the latest S_E of each evaluation kind (evaluate.KINDS)
 

@@ -16,7 +16,7 @@ is a lane's traced number (``traced(default)``, ``lanes.py``), its allowed value
 above it, what it means (the command line's help text, ``experiments/flags.py``).
 
 One way to change a configuration: dotted paths (``override``), as presets, methods, the
-command line, tests and benchmarks all do; ``config_from_dict`` inverts ``io.to_jsonable`` so
+command line, tests and benchmarks all do; ``config_from_dict`` inverts ``folder.to_jsonable`` so
 that a run is loaded from its ``config.json``:
 
     config = override(AgentConfig(), {"top.alpha": (0, 0.4, 0.7), "middle.target_smoothing": True})
@@ -530,7 +530,7 @@ def flatten(nested: Mapping[str, Any], prefix: str = "") -> dict:
 
 
 def config_from_dict(data: Mapping[str, Any], base):
-  """The config whose JSON (``io.to_jsonable``) is ``data``: the inverse of that, by the
+  """The config whose JSON (``folder.to_jsonable``) is ``data``: the inverse of that, by the
   dataclasses' fields. Fields ``data`` lacks (added to the code after it was written) keep
   ``base``'s values (see ``missing_fields``); an unknown one is a ValueError naming it."""
   if not isinstance(data, Mapping):

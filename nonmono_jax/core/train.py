@@ -5,6 +5,7 @@
     for t0 in range(0, total, trainer.chunk_steps):  # Python: progress, logs, checkpoints
       states, metrics = trainer.chunk(states, t0)   # lax.scan over steps, vmap over seeds
     ev = trainer.evaluate(states, key, t)  # per seed, off the schedule: an Evaluation
+    summary = trainer.summarise(states, metrics)  # what the rows say, typed (summary.py)
 
 Inside a chunk the global step ``t`` is the scan's input and is not batched over seeds, so
 every horizon gate in ``agent.step`` stays a real branch (docs/spec.md, section 6).
@@ -51,6 +52,7 @@ from jax.sharding import Mesh, NamedSharding, PartitionSpec as P
 from nonmono_jax.core import agent as agent_lib
 from nonmono_jax.core import lanes
 from nonmono_jax.core import metrics as metrics_lib
+from nonmono_jax.core import summary as summary_lib
 
 
 def compiled_bytes(compiled) -> dict:
@@ -82,6 +84,8 @@ class Trainer:
   # compile(states, t0): compiles the chunk for these states ahead of its first call (which
   # then runs it), so that a caller can say how long compiling took
   compile: Callable | None = None
+  # summarise(states, metrics) -> summary.Summary of a chunk, per lane (jitted)
+  summarise: Callable = jax.jit(summary_lib.summarise)
 
   @property
   def num_lanes(self) -> int:

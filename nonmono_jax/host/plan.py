@@ -11,8 +11,9 @@ A plan's configs are its variants, by name: a method (``ours``), or a method wit
 (``ours+top.alpha=0,0.2,0.35``; ``variants`` keeps each one's method and values). Variants
 whose configs share a static key (``lanes.static_key``) are one group: one program of lanes.
 
-A new run is built from the presets (``methods``) and dotted overrides; a saved one is read
-back from its ``config.json`` (``config.config_from_dict``), not rebuilt: a preset default
+A new run is built from the presets (``methods.build_config``) and dotted overrides; a saved
+one is read back from its ``config.json`` (``folder.py``, ``config.config_from_dict``), not
+rebuilt: a preset default
 changed since the run started is a warning, and the run resumes, plots and renders as it
 was. A plan is data: its trainers are built on the run side (``programs.Programs``, which
 also checks the memory). Every value is checked before anything compiles (``check_plan``);
@@ -25,10 +26,6 @@ import dataclasses
 import datetime
 import itertools
 import os
-import platform
-import subprocess
-import sys
-from importlib import metadata
 
 import jax
 
@@ -38,10 +35,8 @@ from envs import contacts as contacts_lib
 from nonmono_jax.core import lanes, validation
 from nonmono_jax.core.config import AgentConfig, config_from_dict, differences, flatten, get
 from nonmono_jax.core.config import missing_fields, override
-from nonmono_jax.host import io, methods
+from nonmono_jax.host import folder, methods, provenance
 
-PACKAGES = ("jax", "jaxlib", "mujoco", "mujoco-mjx", "brax", "flax", "optax", "orbax-checkpoint",
-            "numpy", "nonmono-jax")
 RUN_FIELDS = methods.RUN_FIELDS
 
 
@@ -232,108 +227,18 @@ def check_plan(task: str, spec: methods.RunSpec, configs: dict) -> None:
                      f"({jax.device_count()}{across}; see --cpu-devices)")
 
 
-# --- config.json ---------------------------------------------------------------------------------
-
-def to_json(plan: Plan) -> dict:
-  """``config.json``: the plan (every config in full), library versions, device, command."""
-  return {"task": plan.task, "preset": plan.preset, "seed": plan.seed,
-          "methods": list(plan.configs), "run": io.to_jsonable(plan.spec),
-          "overrides": io.to_jsonable(plan.overrides), "widen": plan.widen,
-          "configs": {m: io.to_jsonable(c) for m, c in plan.configs.items()},
-          "variants": io.to_jsonable(plan.variants), "grouped": plan.grouped,
-          "physics": plan.physics, "contacts": plan.contacts,
-          "versions": _versions(), "code": code_version(), "python": platform.python_version(),
-          "device": str(jax.devices()[0].device_kind), "platform": jax.default_backend(),
-          "device_count": jax.device_count(), "processes": jax.process_count(),
-          "host": host(), "command": " ".join(sys.argv)}
-
-
-# The instruction sets XLA:CPU's code (and its matmul kernels) may use: two CPUs that differ in
-# them round a run differently, so its rows reproduce only on the same kind of CPU.
-ISA_FLAGS = ("sse4_2", "avx", "avx2", "fma", "avx512f", "avx512_vnni", "avx512_bf16", "amx_tile")
-
-
-def host() -> dict:
-  """The machine type a run's rows reproduce on: CPU model (``/proc/cpuinfo``), its
-  instruction sets from ``ISA_FLAGS``, core count and ``XLA_FLAGS``."""
-  info = {}
-  try:
-    with open("/proc/cpuinfo") as f:
-      for line in f:
-        key, _, value = line.partition(":")
-        info.setdefault(key.strip(), value.strip())
-  except OSError:
-    pass
-  flags = set(info.get("flags", "").split())
-  return {"cpu": info.get("model name") or platform.processor() or platform.machine(),
-          "cpu_family": info.get("cpu family"), "cpu_model": info.get("model"),
-          "isa": [f for f in ISA_FLAGS if f in flags], "cores": os.cpu_count(),
-          "xla_flags": os.environ.get("XLA_FLAGS", "")}
-
-
-def host_differs(payload) -> str | None:
-  """What differs between the host that started the run in ``payload`` (``config.json``) and
-  this one, or None (also for runs from before hosts were recorded)."""
-  saved, now = payload.get("host"), host()
-  if not isinstance(saved, dict):
-    return None
-  changed = [f"{k} {saved.get(k)!r} (here {now[k]!r})" for k in now if saved.get(k) != now[k]
-             and k != "cores"]
-  return "; ".join(changed) or None
-
-
-def code_version() -> dict:
-  """The commit of the code that made the run, where it runs from a git checkout: ``{"commit":
-  sha, "dirty": uncommitted changes to tracked files}``; ``{}`` elsewhere (an installed wheel).
-  Later code may round a run differently: the commit is where it reproduces bit for bit."""
-  here = os.path.dirname(os.path.abspath(__file__))
-  git = lambda *args: subprocess.run(["git", "-C", here, *args], capture_output=True,
-                                     text=True, timeout=10)
-  try:
-    head = git("rev-parse", "HEAD")
-    if head.returncode:
-      return {}
-    dirty = git("status", "--porcelain", "--untracked-files=no").stdout.strip() != ""
-  except (OSError, subprocess.SubprocessError):
-    return {}
-  return {"commit": head.stdout.strip(), "dirty": dirty}
-
-
-def _versions() -> dict:
-  out = {}
-  for name in PACKAGES:
-    try:
-      out[name] = metadata.version(name)
-    except metadata.PackageNotFoundError:
-      out[name] = None
-  return out
-
-
-def read_config(out: str):
-  """``OUT/config.json`` as JSON; raises ValueError naming the file."""
-  path = os.path.join(out, "config.json")
-  if not os.path.isfile(path):
-    raise ValueError(f"{out}: no config.json there (not a run folder)")
-  try:
-    return io.read_json(path)
-  except (OSError, UnicodeDecodeError) as e:
-    raise ValueError(f"{path}: cannot be read ({e})") from None
-  except ValueError as e:
-    raise ValueError(f"{path}: not valid JSON ({e})") from None
-
-
 def load_run(out: str, task: str | None = None) -> Plan:
   """The run in folder ``out``, from its ``config.json`` (checked; ``task``: it must be one);
   ``plan.warnings`` says where it differs from today's presets. Raises ValueError naming
   ``OUT/config.json`` and what is wrong with it."""
-  return from_json(read_config(out), out, task)
+  return from_json(folder.read_config(out), out, task)
 
 
 def from_json(payload, out: str, task: str | None = None) -> Plan:
   """The plan ``config.json`` holds (see ``load_run``)."""
   path = os.path.join(out, "config.json")
   try:
-    _check_payload(payload)
+    folder.check_payload(payload)
     if task is not None and payload["task"] != task:
       raise ValueError(f"it is a {payload['task']} run, not {task}: resume it with python -m "
                        f"experiments.{payload['task'].lower()}")
@@ -346,10 +251,10 @@ def from_json(payload, out: str, task: str | None = None) -> Plan:
       configs[method], notes = _saved_config(payload, method, spec, overrides, widen)
       warnings += [f"{path}: {method} {note}" for note in notes]
     check_plan(payload["task"], spec, configs)
-    physics = saved_physics(payload)
-    contacts = saved_contacts(payload)
-    check_process_count(payload)
-    moved = host_differs(payload)
+    physics = folder.saved_physics(payload)
+    contacts = folder.saved_contacts(payload)
+    folder.check_process_count(payload)
+    moved = provenance.host_differs(payload)
     if moved:
       warnings.append(f"{path}: started on another machine type ({moved}): the rows after "
                       f"this resume are rounded as on this one, so the run as a whole reproduces on neither")
@@ -359,48 +264,6 @@ def from_json(payload, out: str, task: str | None = None) -> Plan:
               spec=spec, configs=configs, overrides=overrides, widen=widen, warnings=warnings,
               variants=variants, grouped=payload.get("grouped", False) is True, physics=physics,
               contacts=contacts)
-
-
-def check_process_count(payload) -> None:
-  """A run resumes with the process count it was made with (each process restores the
-  checkpoint shards of its own lanes)."""
-  made = payload.get("processes", 1)
-  if made != jax.process_count():
-    how = (f"--distributed with {made} processes" if made > 1 else "one process, without "
-           "--distributed")
-    raise ValueError(f"the run was made by {made} process(es), this is {jax.process_count()}: "
-                     f"resume it with {how}")
-
-
-def saved_physics(payload) -> str | None:
-  """The physics a saved run trained with: its ``physics`` entry; for an ant run from before
-  the choice, ``mjx`` (what it ran on)."""
-  task, physics = payload["task"], payload.get("physics")
-  if not envs.has_physics(task):
-    if physics is not None:
-      raise ValueError(f"physics must be null for {task}, got {physics!r}")
-    return None
-  if physics is None:
-    return "mjx"
-  if physics not in ("c", "mjx"):
-    raise ValueError(f"physics must be c or mjx, got {physics!r}")
-  return physics
-
-
-def saved_contacts(payload) -> str | None:
-  """The contact settings a saved run trained with: its ``contacts`` entry; for an ant run from
-  before the choice, ``mujoco3`` (what it ran on)."""
-  task, contacts = payload["task"], payload.get("contacts")
-  if not envs.has_physics(task):
-    if contacts is not None:
-      raise ValueError(f"contacts must be null for {task}, got {contacts!r}")
-    return None
-  if contacts is None:
-    return "mujoco3"
-  if contacts not in contacts_lib.CONTACTS:
-    raise ValueError(f"contacts must be one of {', '.join(contacts_lib.CONTACTS)}, got "
-                     f"{contacts!r}")
-  return contacts
 
 
 def _saved_config(payload, name: str, spec, overrides: dict, widen: dict):
@@ -446,26 +309,3 @@ def _earlier_behaviour(saved, today: AgentConfig | None) -> AgentConfig:
   return override(today, {p: get(default, p) for p in missing_fields(saved, today)})
 
 
-def _check_payload(payload) -> None:
-  """The keys and types ``config.json`` must have, before anything is read from it."""
-  if not isinstance(payload, dict):
-    raise ValueError(f"expected a JSON object, got a {type(payload).__name__}")
-  for key, kind in (("task", str), ("preset", str), ("seed", int), ("methods", list),
-                    ("run", dict), ("overrides", dict), ("configs", dict)):
-    if key not in payload:
-      raise ValueError(f"the key {key!r} is missing")
-    if not isinstance(payload[key], kind):
-      raise ValueError(f"{key} must be a {kind.__name__}, got {payload[key]!r}")
-  if payload["task"] not in envs.NAMES:
-    raise ValueError(f"task {payload['task']!r} is not one of {', '.join(envs.NAMES)}")
-  if set(payload["run"]) != set(RUN_FIELDS):
-    raise ValueError(f"run must have exactly the keys {', '.join(sorted(RUN_FIELDS))}")
-  for key, value in payload["run"].items():
-    if not isinstance(value, int) or isinstance(value, bool):
-      raise ValueError(f"run.{key} must be an integer, got {value!r}")
-  if not isinstance(payload.get("widen", {}), dict):
-    raise ValueError("widen must be an object")
-  for name, variant in payload.get("variants", {}).items():
-    if not (isinstance(variant, dict) and isinstance(variant.get("method"), str)
-            and isinstance(variant.get("overrides"), dict)):
-      raise ValueError(f"variants.{name} must be an object with a method and its overrides")
