@@ -115,10 +115,21 @@ def test_unstable_simulation_is_flagged(push, tmp_path, monkeypatch):
 
 
 def test_physics_option_is_checked_and_resolved():
-  with pytest.raises(ValueError, match="physics must be one of auto, c, mjx"):
+  from envs import c_physics as c_lib, mjx_physics
+  from nonmono_jax.host import plan
+
+  with pytest.raises(ValueError, match="physics must be one of c, mjx"):
     envs.make("AntPush", physics="gpu")
-  assert envs.make("AntFall").physics == "c"  # auto on a CPU backend
-  assert envs.make("AntFall", physics="mjx").physics == "mjx"
+  with pytest.raises(ValueError, match="plan resolves auto"):  # the plan alone resolves it
+    envs.make("AntPush", physics="auto")
+  assert plan.run_physics("AntFall", "auto") == plan.run_physics("AntFall", None) == "c"  # CPU
+  with pytest.raises(ValueError, match="--physics must be one of auto, c, mjx"):
+    plan.run_physics("AntPush", "gpu")
+  c = envs.make("AntFall")
+  assert c.physics == "c" and isinstance(c.engine, c_lib.CPhysics)  # no MJX system built
+  assert not hasattr(c.engine, "sys") and not hasattr(c, "sys")
+  mjx = envs.make("AntFall", physics="mjx")
+  assert mjx.physics == "mjx" and isinstance(mjx.engine, mjx_physics.MjxPhysics)
 
 
 def test_ant_falls_into_the_chasm_and_stands_on_platforms_in_the_c_env():
