@@ -26,7 +26,7 @@ import jax
 
 import envs
 from benchmarks import common
-from envs import ant_maze, tasks
+from envs import ant_maze, maze
 from envs import rollout as env_rollout
 from nonmono_jax.host import plan
 
@@ -40,7 +40,7 @@ def _brax_ant():
 def make_env(name: str, physics: str = "auto"):
   if name == "AntFlat":
     physics = plan.run_physics("AntPush", physics)  # auto: this backend's
-    return ant_maze.AntMazeEnv(tasks.FLAT, ant_maze.AntConfig(physics=physics))
+    return ant_maze.AntMazeEnv(maze.FLAT, ant_maze.AntConfig(physics=physics))
   if name == "brax-ant":
     return _brax_ant()
   if name.startswith("Point"):  # the pure-JAX point robot has one physics

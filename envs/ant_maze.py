@@ -30,7 +30,7 @@ import jax.numpy as jp
 import mujoco
 from brax.envs import base as brax_base
 
-from envs import ant, base, c_physics, maze, mjx_physics, tasks
+from envs import ant, base, c_physics, maze, mjx_physics
 from envs import contacts as contacts_lib
 from envs.physics import ENGINES, Physics
 
@@ -79,16 +79,16 @@ class AntConfig(base.EnvConfig):
 
 
 class AntMazeEnv(base.MazeTask, brax_base.Env):
-  """HIRO's ant in one of the maze layouts (``envs.tasks``)."""
+  """HIRO's ant in one of the maze layouts (``maze.MAZES``)."""
 
-  def __init__(self, task: tasks.Task, config: AntConfig = AntConfig()):
+  def __init__(self, spec: maze.Maze, config: AntConfig = AntConfig()):
     self.config = config
-    self.task = task
-    self.layout = task.layout(8.0)
+    self.maze = spec
+    self.layout = spec.layout(8.0)
     self.mj_model = ant.load(self.layout, config.optimised, config.solver())
     contacts_lib.apply_contacts(self.mj_model, config.contacts)
-    self.target = jp.asarray(task.target, jp.float32)
-    self.success_radius = task.success_radius
+    self.target = jp.asarray(spec.target, jp.float32)
+    self.success_radius = spec.success_radius
     self.engine: Physics = ENGINE[config.physics](self.mj_model, N_FRAMES)
     self._qpos0 = jp.asarray(self.mj_model.qpos0, jp.float32)
     self._nv = self.mj_model.nv
