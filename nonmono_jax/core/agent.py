@@ -5,11 +5,11 @@ in the phases of ``step``:
 
     act:      a = clip(pi_L(s, g) + noise) (uniform in warm-up) -> env.step -> s', R, success
               Low buffer <- (s, g, a, r_L, s', g');  g <- g' = s[:3] + g - s'[:3]
-              Top horizon: R_m += R, Done_m += success, Count_m += 1       (modes.py, top.py)
+              Top horizon: R_m += R, Done_m += success, Count_m += 1       (modes/)
     reset:    episode end (every episode_length steps, all envs at once)
     segment end, every c steps (a Middle decision):
               Middle TD3 buffer + Middle PPO rollout <- (s_0, g, 0.1 sum R, s_c, success)
-              the mode switch: g_expl_mode from the chooser (modes.py): fixed TD3 (HIRO), the
+              the mode switch: g_expl_mode from the chooser (modes/): fixed TD3 (HIRO), the
                 Top PPO per Top horizon (ours), the informed trigger (Ref:*)
               next goal from the sub-policy of g_expl_mode (TD3 / PPO / RANDOM)
     updates (after warm-up): Low TD3 every step, Middle TD3 every c, Middle PPO every 30,

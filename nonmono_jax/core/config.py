@@ -64,7 +64,7 @@ EVAL_KINDS = EVAL_GOALS + ("ppo",)
 # PyTorch's nn.Linear default (weights and biases U(+-1/sqrt(fan_in))), the paper's code's
 INITS = ("lecun", "torch")
 MEAN_HEADS = ("linear", "tanh")  # the Gaussian PPO's mean head (ppo.py)
-CADENCES = ("periods", "code")  # when the homeostasis trigger checks (switch.py)
+CADENCES = ("periods", "code")  # when the homeostasis trigger checks (modes/trigger.py)
 TARGET_NOISES = ("sample", "batch")  # TD3's target smoothing: a draw per sample, or one per batch
 VALUE_WEIGHTINGS = ("sample", "batch")  # PPO's loss weight on each sample's value error, or on
 #                                         the rollout's mean value loss (the paper's PPOM)
@@ -242,7 +242,7 @@ class PPOConfig:
 
 @dataclasses.dataclass(frozen=True)
 class HomeostasisConfig:
-  """The informed trigger's options (``switch.py``): the paper's Ref code decides at Middle
+  """The informed trigger's options (``modes/trigger.py``): the paper's Ref code decides at Middle
   decisions, so ``k`` and ``gamma`` are per Middle segment of c env steps."""
 
   rho: float = traced(0.01)  # target exploit -> explore switch rate per trigger check
