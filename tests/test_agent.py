@@ -11,7 +11,7 @@ import pytest
 
 import envs
 from nonmono_jax.core import agent as agent_lib
-from nonmono_jax.core import hierarchy, homeostasis, lanes, ppo, td3, train
+from nonmono_jax.core import hierarchy, homeostasis, lanes, ppo, summary, td3, train
 from nonmono_jax.core import config as config_lib
 from nonmono_jax.core.config import AgentConfig, TopConfig
 from nonmono_jax.core.modes.top import TopState
@@ -107,6 +107,21 @@ def test_mode_counts_add_up_to_steps_after_warmup(runs, method):
                                   r.end.mode_steps[:, j])
     np.testing.assert_array_equal(r.metrics[f"count/{name}"][WARMUP:],
                                   (r.modes[WARMUP:] == j).sum(-1))
+
+
+@pytest.mark.parametrize("method", ALL)
+def test_the_rows_summary_reads_what_the_step_reports(runs, method):
+  """core/summary.py looks every metric up by the name the step gives it: a renamed one fails
+  here (KeyError), not as an empty column of a run's metrics.csv."""
+  r = runs(method)
+  # the run records values: their mean over the run stands in for each metric's reduction
+  reduced = {k: v.mean(0) for k, v in r.metrics.items()}
+  s = jax.tree.map(np.asarray, summary.summarise(r.end, reduced))
+  np.testing.assert_array_equal(s.cum_steps, r.end.mode_steps)
+  assert (s.updates.low > 0).all() and (s.updates.middle > 0).all()
+  assert np.isfinite(s.losses.low_critic).all() and np.isfinite(s.losses.middle_actor).all()
+  assert set(s.params_finite) == set(r.end.learner_params())
+  assert all(ok.all() for ok in [*s.params_finite.values(), *s.metrics_finite.values()])
 
 
 @pytest.mark.parametrize("method", ALL)

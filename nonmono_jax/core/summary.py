@@ -10,8 +10,9 @@ not in a run.
     summary = trainer.summarise(states, metrics)   # jitted; per lane, (lanes,) or (lanes, 3)
     summary.steps[:, hierarchy.PPO], summary.losses.top, summary.updates.top
 
-A metric a method does not have (HIRO's Top) is zero, with zero updates: the rows leave it
-empty.
+A learner's metric is looked up where its level has one (``<level>/updated``, which a level
+that exists always reports): a renamed loss is a KeyError, not an empty column. A metric a
+method does not have (HIRO's Top) is zero, with zero updates: the rows leave it empty.
 """
 
 from __future__ import annotations
@@ -88,16 +89,19 @@ def summarise(states, metrics: dict) -> Summary:
   ``metrics`` its reduced metrics (``train.reduce_chunk``)."""
   lanes = metrics["reward"]
   get = lambda name: metrics[name] if name in metrics else jp.zeros_like(lanes)
+  # a level's metric where the level exists (it reports its updates), else zero
+  of_level = lambda name: (metrics[name] if f"{name.split('/')[0]}/updated" in metrics
+                           else jp.zeros_like(lanes))
   per_mode = lambda prefix: jp.stack([metrics[f"{prefix}/{m}"] for m in hierarchy.MODES], -1)
   return Summary(
       reward=metrics["reward"], success=metrics["success"], distance=metrics["distance"],
       steps=per_mode("count"), decisions=per_mode("decisions"),
-      mode_probs=jp.stack([get(f"horizon/p_{m}") for m in hierarchy.MODES], -1),
+      mode_probs=jp.stack([of_level(f"horizon/p_{m}") for m in hierarchy.MODES], -1),
       horizons=get("horizon/updated"),
-      losses=Losses(low_critic=get("low/critic_loss"), low_actor=get("low/actor_loss"),
-                    middle_critic=get("middle/critic_loss"),
-                    middle_actor=get("middle/actor_loss"), middle_ppo=get("middle_ppo/loss"),
-                    top=get("top/loss")),
+      losses=Losses(low_critic=of_level("low/critic_loss"), low_actor=of_level("low/actor_loss"),
+                    middle_critic=of_level("middle/critic_loss"),
+                    middle_actor=of_level("middle/actor_loss"),
+                    middle_ppo=of_level("middle_ppo/loss"), top=of_level("top/loss")),
       updates=Updates(low=get("low/updated"), middle=get("middle/updated"),
                       middle_ppo=get("middle_ppo/updated"), top=get("top/updated")),
       low_reward=metrics["low/reward"], subgoal_distance=metrics["low/subgoal_distance"],
