@@ -13,13 +13,25 @@ from typing import Any
 
 import jax
 
-from nonmono_jax.host.plan import host
+from nonmono_jax.core.config import AgentConfig, get
+from nonmono_jax.host import methods
+from nonmono_jax.host.provenance import host
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 RESULTS = os.path.join(os.path.dirname(__file__), "results")
 # Dotted overrides that time every step with all modes live: no warm-up, no starting mode,
 # evaluation never (timed apart).
 ALL_MODES_LIVE = {"warmup_steps": 0, "eval_every": 10**9, "top.starting_steps": 0}
+BUFFERS = ("low.buffer_size", "middle.buffer_size")
+
+
+def paper_config(method: str, task: str, overrides: dict | None = None) -> AgentConfig:
+  """The paper preset's config of ``method`` on ``task`` (``methods.build_config``) with the
+  replay buffers its task declares, rings of a fixed size (a benchmark runs a few chunks, not
+  the whole run that ``build_config`` sizes them for), then ``overrides``."""
+  layers, _ = methods.preset_layers("paper", method, task)
+  ring = {p: layers.get(p, get(AgentConfig(), p)) for p in BUFFERS}
+  return methods.build_config("paper", method, task, {**ring, **(overrides or {})})[0]
 
 
 def export_revision(ref: str, folder: str) -> str:

@@ -26,8 +26,9 @@ import jax
 
 import envs
 from benchmarks import common
-from envs import ant_maze, tasks
+from envs import ant_maze, maze
 from envs import rollout as env_rollout
+from nonmono_jax.host import plan
 
 
 def _brax_ant():
@@ -38,12 +39,13 @@ def _brax_ant():
 
 def make_env(name: str, physics: str = "auto"):
   if name == "AntFlat":
-    return ant_maze.AntMazeEnv(tasks.FLAT, ant_maze.AntConfig(physics=physics))
+    physics = plan.run_physics("AntPush", physics)  # auto: this backend's
+    return ant_maze.AntMazeEnv(maze.FLAT, ant_maze.AntConfig(physics=physics))
   if name == "brax-ant":
     return _brax_ant()
   if name.startswith("Point"):  # the pure-JAX point robot has one physics
     return envs.make(name)
-  return envs.make(name, physics=physics)
+  return envs.make(name, physics=plan.run_physics(name, physics))
 
 
 def measure(env, batch: int, steps: int, repeats: int) -> dict:

@@ -60,7 +60,7 @@ GAIT_PERIOD = 8  # env steps
 
 
 def builders():
-  """``envs.ant``, ``envs.contacts`` and ``envs.tasks``; under MuJoCo 2.x (no JAX or MJX to
+  """``envs.ant``, ``envs.contacts`` and ``envs.maze``; under MuJoCo 2.x (no JAX or MJX to
   import ``envs`` itself) loaded without the package's ``__init__``."""
   if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
@@ -70,15 +70,15 @@ def builders():
     package = types.ModuleType("envs")
     package.__path__ = [str(ROOT / "envs")]
     sys.modules["envs"] = package
-  from envs import ant, contacts, tasks
-  return ant, contacts, tasks
+  from envs import ant, contacts, maze
+  return ant, contacts, maze
 
 
 def literal_xml(task: str) -> str:
   """HIRO's literal model of ``task`` as this MuJoCo reads it (2.x has no ``ls_iterations``
   option: its line search always stops at 50, HIRO_SOLVER's value)."""
-  ant, _, tasks = builders()
-  xml = ant.ant_maze_xml(tasks.TASKS[task].layout(8.0), optimised=False)
+  ant, _, maze = builders()
+  xml = ant.ant_maze_xml(maze.MAZES[task].layout(8.0), optimised=False)
   if mujoco.__version__.startswith("2."):
     xml = xml.replace(f' ls_iterations="{ant.HIRO_SOLVER.ls_iterations}"', "")
   return xml
@@ -86,8 +86,8 @@ def literal_xml(task: str) -> str:
 
 def xml_digest(task: str) -> str:
   """sha256 of the literal model's XML as MuJoCo 3 reads it (what the fixtures were made of)."""
-  ant, _, tasks = builders()
-  xml = ant.ant_maze_xml(tasks.TASKS[task].layout(8.0), optimised=False)
+  ant, _, maze = builders()
+  xml = ant.ant_maze_xml(maze.MAZES[task].layout(8.0), optimised=False)
   return hashlib.sha256(xml.encode()).hexdigest()
 
 

@@ -48,7 +48,7 @@ def make_point_trainer(env_name, method, seeds, chunk, hidden=None):
   """The trainer of ``train_throughput`` at the task's preset (optionally other TD3 layers)."""
   env = envs.make(env_name, episode_length=100 if env_name.startswith("Point") else 1000)
   layers = {"low.hidden": tuple(hidden), "middle.hidden": tuple(hidden)} if hidden else {}
-  config = methods.make_config(method, env_name, {**ALL_MODES_LIVE, **layers})
+  config = common.paper_config(method, env_name, {**ALL_MODES_LIVE, **layers})
   return train.make_trainer(env, config, num_seeds=seeds, chunk_steps=chunk)
 
 

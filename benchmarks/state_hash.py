@@ -29,7 +29,6 @@ import numpy as np
 import envs
 from benchmarks import common
 from nonmono_jax.core import train
-from nonmono_jax.host import methods
 
 OVERRIDES = {"warmup_steps": 200, "top.starting_steps": 300, "eval_every": 100_000}
 SEEDS, CHUNK, STEPS = 2, 500, 1500
@@ -37,7 +36,7 @@ SEEDS, CHUNK, STEPS = 2, 500, 1500
 
 def state_hash() -> str:
   """SHA-256 (16 hex digits) of the train state after STEPS steps of ours on PointMaze."""
-  config = methods.make_config("ours", "PointMaze", OVERRIDES)
+  config = common.paper_config("ours", "PointMaze", OVERRIDES)
   trainer = train.make_trainer(envs.make("PointMaze", episode_length=100), config,
                                num_seeds=SEEDS, chunk_steps=CHUNK)
   states = trainer.init(jax.random.PRNGKey(0))

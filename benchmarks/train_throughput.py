@@ -18,7 +18,7 @@ modes live. Seeds are vmapped; one timed call is a jitted chunk of ``--chunk`` s
 
 With E envs per seed the updates are the paper's per vector step (``num_envs`` alone: one
 Low update per vector step), unless ``--grad-steps U`` is given: then U updates per vector
-step of batch 100 E / U (``methods.widen``'s data use per env step); ``--paper-updates`` is
+step of batch 100 E / U (``methods.widen_layer``'s data use per env step); ``--paper-updates`` is
 U = E, the paper's updates per env step exactly (E updates of batch 100 per vector step).
 
 ``compile_s`` is the chunk's lowering and XLA compilation alone; ``memory`` is XLA's
@@ -51,11 +51,14 @@ def measure(env_name: str, method: str, seeds: int, num_envs: int, chunk: int,
             repeats: int, time_eval: bool, grad_steps: int | None = None,
             physics: str = "auto") -> dict:
   env = plan.make_env(env_name, 1000, physics if env_name.startswith("Ant") else None)
-  base = methods.make_config(method, env_name.replace("Point", "Ant"))  # the paper's settings
-  if grad_steps is not None:
+  task = env_name.replace("Point", "Ant")  # the paper's settings
+  base = common.paper_config(method, task)
+  if grad_steps is not None:  # widened, its buffers sized for a run of one chunk
     spec = methods.RunSpec(steps=chunk, seeds=seeds, episode_length=1000, chunk=chunk,
                            checkpoint_every=chunk)
-    base, _ = methods.widen(base, spec, num_envs, grad_steps)
+    layer, spec = methods.widen_layer(base, spec, num_envs, grad_steps)
+    base = common.paper_config(method, task, {**layer, **methods.buffer_sizes(
+        spec.steps, base.c, num_envs)})
   config = override(base, {**ALL_MODES_LIVE, "num_envs": num_envs})
   trainer = train.make_trainer(env, config, num_seeds=seeds, chunk_steps=chunk)
   states = jax.block_until_ready(trainer.init(jax.random.PRNGKey(0)))
@@ -97,7 +100,7 @@ def main(argv=None):
   p.add_argument("--seeds", nargs="+", type=int, default=[1, 4, 16])
   p.add_argument("--num-envs", nargs="+", type=int, default=[1], help="envs per seed")
   p.add_argument("--grad-steps", type=int, default=None,
-                 help="TD3 updates per vector step, of batch 100 E / U (methods.widen); "
+                 help="TD3 updates per vector step, of batch 100 E / U (methods.widen_layer); "
                       "default: one update of batch 100 per vector step")
   p.add_argument("--paper-updates", action="store_true",
                  help="U = E for every E: the paper's TD3 updates per env step exactly")
@@ -118,7 +121,7 @@ def main(argv=None):
     p.error("--grad-steps and --paper-updates exclude each other")
   if args.grad_steps is not None:
     settings += f"; with E envs per seed: {args.grad_steps} TD3 updates of batch 100 E / " \
-                f"{args.grad_steps} per vector step (methods.widen)"
+                f"{args.grad_steps} per vector step (methods.widen_layer)"
   if args.paper_updates:
     settings += "; with E envs per seed: E TD3 updates of batch 100 per vector step"
   rows = []

@@ -7,7 +7,7 @@
     state.success, state.distance, env.target, env.success_radius, env.mj_model
 
 The package loads nothing heavy until it is used: ``envs.make`` and the names below import the
-robots (JAX, MuJoCo, MJX) on first use, and a light module (``envs.physics``, ``envs.tasks``)
+robots (JAX, MuJoCo, MJX) on first use, and a light module (``envs.physics``, ``envs.maze``)
 imports alone, so that the experiment command answers ``--help`` without JAX.
 """
 
@@ -19,11 +19,11 @@ _FROM = {"make": "registry", "NAMES": "registry", "valid_overrides": "registry",
          "has_physics": "registry", "AntMazeEnv": "ant_maze", "AntConfig": "ant_maze",
          "PointMazeEnv": "point_maze", "PointConfig": "point_maze", "EnvConfig": "base",
          "MazeEnv": "base", "MazeState": "base"}
-__all__ = [*_FROM, "tasks"]
+__all__ = [*_FROM, "maze"]
 
 
 def __getattr__(name: str):
-  """A registry name from its module, or a submodule (``envs.tasks``), imported on first use."""
+  """A registry name from its module, or a submodule (``envs.maze``), imported on first use."""
   if name not in _FROM:
     try:
       return importlib.import_module(f"envs.{name}")

@@ -1,15 +1,17 @@
-"""AntPush, AntFall and AntMaze: HIRO's ant in a maze, as a brax ``PipelineEnv``.
+"""AntPush, AntFall and AntMaze: HIRO's ant in a maze, as a brax ``Env``.
 
 Observation (30): ant ``qpos[:15]`` (xyz, quaternion, 8 joints), ``qvel[:14]`` and ``t * 0.001``.
 Blocks are simulated but not observed. Actions are the 8 motor torques, clipped to +-30.
 One env step is 5 physics steps of 0.02 s (RK4), i.e. 0.1 s.
 
-Two physics run the same model (``AntConfig.physics``): ``mjx``, brax's MJX pipeline, the
-accelerator path (the state is an ``mjx.Data``); ``c``, MuJoCo's C engine called from inside
-the jitted step (``envs.c_physics``, the state a ``CState``), 10-25x faster on a CPU. ``auto``
-(the default) is ``c`` on a CPU backend and ``mjx`` on an accelerator. Both states have
-``qpos`` and ``qvel``; ``unstable(state)`` is 1.0 after a step that made the simulation
-unstable (MuJoCo's bad qpos/qvel/qacc warnings in C; a NaN or Inf in MJX).
+Two physics run the same model (``AntConfig.physics``, an ``envs.physics.Physics`` built once
+by the env): ``mjx``, brax's MJX pipeline, the accelerator path (``envs.mjx_physics``, the state
+a brax MJX state); ``c`` (the default), MuJoCo's C engine called from inside the jitted step
+(``envs.c_physics``, the state a ``CState``), 10-25x faster on a CPU. A run's ``--physics
+auto`` is resolved by its plan (``plan.run_physics``: c on a CPU backend, mjx on an
+accelerator), never here. Both states have ``qpos`` and ``qvel``; ``unstable(state)`` is 1.0
+after a step that made the simulation unstable (MuJoCo's bad qpos/qvel/qacc warnings in C; a
+NaN or Inf in MJX).
 
 ``AntConfig.contacts`` picks the engine's contact settings (``envs.contacts``), applied to the
 compiled model before either physics is built on it: ``mujoco3`` (the default) as MuJoCo 3
@@ -21,37 +23,31 @@ capsule inertia, what the paper's code ran (``docs/environments.md``, "MuJoCo 2 
 from __future__ import annotations
 
 import dataclasses
-import warnings
 
 from envs import quiet  # noqa: F401 - before brax: mujoco.mjx's import prints nothing
 import jax
 import jax.numpy as jp
 import mujoco
 from brax.envs import base as brax_base
-from brax.io import mjcf
 
-from envs import ant, base, c_physics, maze, tasks
+from envs import ant, base, c_physics, maze, mjx_physics
 from envs import contacts as contacts_lib
-from envs.physics import PHYSICS
+from envs.physics import ENGINES, Physics
 
 N_FRAMES = 5
 OBS_SIZE = 30
 _ANT_NQ, _ANT_NV = 15, 14
-
-
-def default_physics() -> str:
-  """``auto``'s choice: MuJoCo C on a CPU backend (10-25x MJX there), MJX on an accelerator."""
-  return "c" if jax.default_backend() == "cpu" else "mjx"
+ENGINE = {"c": c_physics.CPhysics, "mjx": mjx_physics.MjxPhysics}  # by AntConfig.physics
 
 
 @dataclasses.dataclass(frozen=True)
 class AntConfig(base.EnvConfig):
   """Ant maze options. ``optimised=False`` builds HIRO's model literally (slow in MJX).
-  ``physics``: ``c``, ``mjx`` or ``auto`` (resolved by the env, ``default_physics``).
+  ``physics``: ``c`` or ``mjx`` (``envs.physics.ENGINES``).
   ``contacts``: the engine's settings, ``mujoco3``, ``mujoco2`` or ``mujoco200``
   (``envs.contacts``)."""
 
-  physics: str = "auto"
+  physics: str = "c"
   contacts: str = contacts_lib.DEFAULT
   optimised: bool = True
   solver_iterations: int = ant.FAST_SOLVER.iterations
@@ -61,8 +57,9 @@ class AntConfig(base.EnvConfig):
 
   def __post_init__(self):
     super().__post_init__()
-    if self.physics not in PHYSICS:
-      raise ValueError(f"physics must be one of {', '.join(PHYSICS)}, got {self.physics!r}")
+    if self.physics not in ENGINES:
+      raise ValueError(f"physics must be one of {', '.join(ENGINES)}, got {self.physics!r} "
+                       f"(a run's plan resolves auto: plan.run_physics)")
     if self.contacts not in contacts_lib.CONTACTS:
       raise ValueError(f"contacts must be one of {', '.join(contacts_lib.CONTACTS)}, "
                        f"got {self.contacts!r}")
@@ -81,30 +78,32 @@ class AntConfig(base.EnvConfig):
                               self.max_contact_points, self.max_geom_pairs)
 
 
-class AntMazeEnv(base.MazeTask, brax_base.PipelineEnv):
-  """HIRO's ant in one of the maze layouts (``envs.tasks``)."""
+class AntMazeEnv(base.MazeTask, brax_base.Env):
+  """HIRO's ant in one of the maze layouts (``maze.MAZES``)."""
 
-  def __init__(self, task: tasks.Task, config: AntConfig = AntConfig()):
-    if config.physics == "auto":
-      config = dataclasses.replace(config, physics=default_physics())
+  def __init__(self, spec: maze.Maze, config: AntConfig = AntConfig()):
     self.config = config
-    self.task = task
-    self.layout = task.layout(8.0)
+    self.maze = spec
+    self.layout = spec.layout(8.0)
     self.mj_model = ant.load(self.layout, config.optimised, config.solver())
     contacts_lib.apply_contacts(self.mj_model, config.contacts)
-    self.target = jp.asarray(task.target, jp.float32)
-    self.success_radius = task.success_radius
-    with warnings.catch_warnings():  # brax's notice that its own pipelines are unmaintained
-      warnings.simplefilter("ignore", UserWarning)
-      sys = mjcf.load_model(self.mj_model)
-    super().__init__(sys=sys, backend="mjx", n_frames=N_FRAMES)
-    self._c = c_physics.CPhysics(self.mj_model, N_FRAMES) if config.physics == "c" else None
+    self.target = jp.asarray(spec.target, jp.float32)
+    self.success_radius = spec.success_radius
+    self.engine: Physics = ENGINE[config.physics](self.mj_model, N_FRAMES)
     self._qpos0 = jp.asarray(self.mj_model.qpos0, jp.float32)
     self._nv = self.mj_model.nv
 
   @property
   def physics(self) -> str:
     return self.config.physics
+
+  @property
+  def backend(self) -> str:
+    return self.config.physics
+
+  @property
+  def dt(self) -> float:
+    return float(self.mj_model.opt.timestep) * N_FRAMES
 
   @property
   def observation_size(self) -> int:
@@ -128,21 +127,13 @@ class AntMazeEnv(base.MazeTask, brax_base.PipelineEnv):
     ps = self.pipeline_init(qpos, qvel)
     return self._state(ps, jp.zeros((), jp.int32))
 
-  def pipeline_init(self, q: jax.Array, qd: jax.Array, act=None, ctrl=None):
-    if self._c is None:
-      return super().pipeline_init(q, qd, act, ctrl)
-    # The torso's quaternion normalised, as MJX's forward pass leaves it.
-    q = q.at[3:7].set(q[3:7] / jp.linalg.norm(q[3:7]))
-    return self._c.init(q, qd)
-
-  def pipeline_step(self, pipeline_state, action: jax.Array):
-    if self._c is None:
-      return super().pipeline_step(pipeline_state, action)
-    return self._c.step(pipeline_state, action)
+  def pipeline_init(self, q: jax.Array, qd: jax.Array):
+    """The engine's state at ``q``, ``qd`` (a start the caller chose)."""
+    return self.engine.init(q, qd)
 
   def step(self, state: base.MazeState, action: jax.Array) -> base.MazeState:
     action = jp.clip(action, -ant.CTRL_LIMIT, ant.CTRL_LIMIT)
-    ps = self.pipeline_step(state.pipeline_state, action)
+    ps = self.engine.step(state.pipeline_state, action)
     return self._state(ps, state.steps + 1)
 
   def _state(self, ps, steps) -> base.MazeState:
@@ -150,10 +141,7 @@ class AntMazeEnv(base.MazeTask, brax_base.PipelineEnv):
     return self.make_state(ps, body, ps.qpos[:3], steps)
 
   def unstable(self, state: base.MazeState) -> jax.Array:
-    ps = state.pipeline_state
-    if self._c is not None:
-      return ps.unstable
-    return 1.0 - (jp.all(jp.isfinite(ps.qpos)) & jp.all(jp.isfinite(ps.qvel))).astype(jp.float32)
+    return self.engine.unstable(state.pipeline_state)
 
   def qpos(self, state: base.MazeState) -> jax.Array:
     """Joint positions of ``mj_model`` for rendering."""

@@ -92,7 +92,8 @@ class _BatchPool:
 
 
 class CPhysics:
-  """``init`` and ``step`` of a model's simulations in MuJoCo C, callable from jitted code."""
+  """``init``, ``step`` and ``unstable`` of a model's simulations in MuJoCo C, callable from
+  jitted code: a ``physics.Physics``."""
 
   def __init__(self, model: mujoco.MjModel, n_frames: int):
     if model.nplugin:
@@ -100,6 +101,11 @@ class CPhysics:
     self.model, self.n_frames = model, n_frames
     self.width = mujoco.mj_stateSize(model, int(CARRIED))  # float64 values carried
     self._nq, self._nv = model.nq, model.nv
+    # where each quaternion of the qpos starts: a free joint's after its position, a ball's
+    kinds = {int(mujoco.mjtJoint.mjJNT_FREE): 3, int(mujoco.mjtJoint.mjJNT_BALL): 0}
+    self._quaternions = [int(adr) + kinds[int(kind)]
+                         for kind, adr in zip(model.jnt_type, model.jnt_qposadr)
+                         if int(kind) in kinds]
     self._pool = _BatchPool(model)
 
   def _shapes(self, lead=()) -> CState:
@@ -110,9 +116,16 @@ class CPhysics:
   # --- the jitted side ----------------------------------------------------------------------
 
   def init(self, qpos: jax.Array, qvel: jax.Array) -> CState:
-    """The state at ``qpos``, ``qvel`` (float32), time 0, no warm start."""
+    """The state at ``qpos``, ``qvel`` (float32), time 0, no warm start; each quaternion of
+    ``qpos`` (free and ball joints) normalised, as MJX's forward pass leaves it."""
+    for i in self._quaternions:
+      qpos = qpos.at[i:i + 4].set(qpos[i:i + 4] / jp.linalg.norm(qpos[i:i + 4]))
     return jax.pure_callback(self._host_init, self._shapes(), qpos.astype(jp.float32),
                              qvel.astype(jp.float32), vmap_method="broadcast_all")
+
+  def unstable(self, state: CState) -> jax.Array:
+    """1.0 where MuJoCo flagged the step that made ``state`` (module doc)."""
+    return state.unstable
 
   def step(self, state: CState, ctrl: jax.Array) -> CState:
     """``n_frames`` calls of ``mj_step`` with ``ctrl`` held."""

@@ -1,4 +1,5 @@
-"""HIRO's maze grids turned into MJCF: walls, platforms, chasm and movable blocks.
+"""HIRO's mazes (``MAZES``: grids, targets and success radius, docs/spec.md, section 1) and
+their grids turned into MJCF: walls, platforms, chasm and movable blocks.
 
 One place turns a grid into geometry, for every robot (the MJX ant and, for rendering, the
 pure-JAX point). The layout follows HIRO's ``maze_env.py`` (Nachum et al. 2018): cell (i, j)
@@ -266,3 +267,56 @@ def maze_worldbody_xml(layout: MazeLayout, optimised: bool, static_bits: tuple[i
         f'mass="{blk.mass:g}" contype="{bc}" conaffinity="{ba}" rgba="0.9 0.1 0.1 1"/>'
         + "</body>")
   return "\n".join(parts)
+
+
+# --- HIRO's mazes -----------------------------------------------------------------------------
+
+XY, YZ, r = BLOCK_XY, BLOCK_YZ, ROBOT
+
+PUSH_GRID = ((1, 1, 1, 1, 1),
+             (1, 0, r, 1, 1),
+             (1, 0, XY, 0, 1),
+             (1, 1, 0, 1, 1),
+             (1, 1, 1, 1, 1))
+FALL_GRID = ((1, 1, 1, 1),
+             (1, r, 0, 1),
+             (1, 0, YZ, 1),
+             (1, -1, -1, 1),
+             (1, 0, 0, 1),
+             (1, 1, 1, 1))
+MAZE_GRID = ((1, 1, 1, 1, 1),
+             (1, r, 0, 0, 1),
+             (1, 1, 1, 0, 1),
+             (1, 0, 0, 0, 1),
+             (1, 1, 1, 1, 1))
+# The ant alone on a flat floor (the benchmark's reference): no walls that it can reach.
+FLAT_GRID = ((r,),)
+
+
+@dataclasses.dataclass(frozen=True)
+class Maze:
+  """One of HIRO's mazes at the ant's scale (scaling 8): its grid, the target and the success
+  radius; the point robot rescales it. A task (``methods.TASKS``) is a robot in one of them."""
+
+  grid: tuple
+  target: tuple[float, float, float]  # at scaling 8
+  success_radius: float = 5.0  # at scaling 8
+
+  def layout(self, scaling: float) -> MazeLayout:
+    return MazeLayout(self.grid, scaling=scaling)
+
+  def scaled_target(self, scaling: float) -> tuple[float, float, float]:
+    """xy scale with the maze; z stays a torso height above the task's floor."""
+    k = scaling / 8.0
+    floor = MazeLayout(self.grid, scaling=8.0).floor_z
+    z = self.target[2] - floor + MazeLayout(self.grid, scaling=scaling).floor_z
+    return (self.target[0] * k, self.target[1] * k, z)
+
+
+MAZES = {
+    "Push": Maze(PUSH_GRID, (0.0, 19.0, 0.5)),
+    "Fall": Maze(FALL_GRID, (0.0, 27.0, 4.5)),
+    "Maze": Maze(MAZE_GRID, (0.0, 16.0, 0.5)),
+}
+# Not a task's: the same ant alone on a flat floor, the throughput reference.
+FLAT = Maze(FLAT_GRID, (0.0, 16.0, 0.5))

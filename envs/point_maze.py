@@ -28,7 +28,7 @@ import numpy as np
 from brax.envs import base as brax_base
 from flax import struct
 
-from envs import base, maze, tasks
+from envs import base, maze
 
 SCALING = 4.0
 RADIUS = 0.5
@@ -61,12 +61,12 @@ class PointPhysics:
 class PointMazeEnv(base.MazeTask, brax_base.Env):
   """A point robot in a maze (brax ``Env`` interface, no physics engine)."""
 
-  def __init__(self, task: tasks.Task, config: PointConfig = PointConfig()):
+  def __init__(self, spec: maze.Maze, config: PointConfig = PointConfig()):
     self.config = config
-    self.task = task
-    self.layout = lay = task.layout(SCALING)
-    self.target = jp.asarray(task.scaled_target(SCALING), jp.float32)
-    self.success_radius = task.success_radius * SCALING / 8.0
+    self.maze = spec
+    self.layout = lay = spec.layout(SCALING)
+    self.target = jp.asarray(spec.scaled_target(SCALING), jp.float32)
+    self.success_radius = spec.success_radius * SCALING / 8.0
     self.mj_model = mujoco.MjModel.from_xml_string(point_maze_xml(lay))
     self._top = lay.floor_z  # surface the point starts on
     self._start = np.array([0.0, 0.0, self._top + RADIUS], np.float32)

@@ -6,12 +6,12 @@ import dataclasses
 
 from envs import quiet  # noqa: F401 - before brax: mujoco.mjx's import prints nothing
 
-from envs import tasks
+from envs import maze
 from envs.ant_maze import AntConfig, AntMazeEnv
 from envs.point_maze import PointConfig, PointMazeEnv
 
 _ROBOTS = {"Ant": (AntMazeEnv, AntConfig), "Point": (PointMazeEnv, PointConfig)}
-NAMES = tuple(f"{robot}{task}" for robot in _ROBOTS for task in tasks.TASKS)
+NAMES = tuple(f"{robot}{task}" for robot in _ROBOTS for task in maze.MAZES)
 
 
 def valid_overrides(name: str) -> tuple[str, ...]:
@@ -22,7 +22,7 @@ def valid_overrides(name: str) -> tuple[str, ...]:
 
 def _split(name: str) -> tuple[str, str]:
   for robot in _ROBOTS:
-    if name.startswith(robot) and name[len(robot):] in tasks.TASKS:
+    if name.startswith(robot) and name[len(robot):] in maze.MAZES:
       return robot, name[len(robot):]
   raise ValueError(f"unknown env {name!r}; valid names: {', '.join(NAMES)}")
 
@@ -41,4 +41,4 @@ def make(name: str, **overrides):
   unknown = sorted(set(overrides) - set(valid))
   if unknown:
     raise ValueError(f"unknown override(s) {unknown} for {name}; valid: {', '.join(valid)}")
-  return env_cls(tasks.TASKS[task], config_cls(**overrides))
+  return env_cls(maze.MAZES[task], config_cls(**overrides))

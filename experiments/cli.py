@@ -6,7 +6,7 @@
     python -m experiments.antpush --top.alpha 0 0.4 0.7 --low.batch_size 256  # any field
     python -m experiments.pointpush --method ours --sweep top.alpha=0,0.4,0.7 0,0.2,0.35
 
-Methods (and sweep variants) whose programs coincide (``hyper.static_key``: ours and its
+Methods (and sweep variants) whose programs coincide (``lanes.static_key``: ours and its
 ablations; a sweep of traced numbers) run as lanes of one program; the others one after
 another; all into one folder (``nonmono_jax.host.io``): ``config.json``,
 ``metrics.csv`` (one row per method, seed and chunk), ``metrics.jsonl`` (every metric) and
@@ -44,13 +44,14 @@ cores.share(sys.argv[1:])  # before JAX loads: this process's share of a machine
 from experiments.flags import EXIT_BAD_INPUT, EXIT_FAILED, EXIT_TIME_LIMIT  # noqa: E402,F401
 from experiments.flags import make_parser, parse_sweep  # noqa: E402,F401 - the command's flags
 from nonmono_jax.host import interrupts  # noqa: E402
-from nonmono_jax.host import io, plan as plan_lib, processes, run, runlock, sinks  # noqa: E402
+from nonmono_jax.host import checkpoints, folder, plan as plan_lib, processes, rows  # noqa: E402
+from nonmono_jax.host import run, runlock  # noqa: E402
+from nonmono_jax.host import sinks  # noqa: E402
 from nonmono_jax.host import programs as programs_lib  # noqa: E402
 from nonmono_jax.host.methods import task_of_module  # noqa: E402,F401 - for experiments/<task>.py
 from nonmono_jax.host.plan import Plan  # noqa: E402,F401 - for callers of plan_from_args
 from nonmono_jax.host.run import Clock, NonFinite, TimeLimit  # noqa: E402,F401 - the run's, in tests
 
-EXIT_NON_FINITE = EXIT_FAILED
 # What --resume may change: how this process runs, not what the run is.
 RESUME_ALLOWED = ("resume", "time_limit", "no_progress", "tensorboard", "wandb", "distributed",
                   "coordinator", "num_processes", "process_id")
@@ -73,7 +74,7 @@ CACHE_DIR = os.path.join(os.path.expanduser("~"), ".cache", "nonmono-jax", "xla"
 
 
 def main(task: str, argv=None) -> int:
-  io.quiet_storage_leftovers()
+  checkpoints.quiet_storage_leftovers()
   _cache_compiled_programs()
   parser = make_parser(task)
   args = parser.parse_args(argv)
@@ -101,7 +102,7 @@ def main(task: str, argv=None) -> int:
       except KeyboardInterrupt as e:  # as the folder opened, before the run began
         interrupts.say(_stopped(plan, type(e)))
         code = EXIT_FAILED
-  except (run.BadFolder, runlock.Locked, io.MetricsError, io.CheckpointError) as e:
+  except (run.BadFolder, runlock.Locked, rows.MetricsError, checkpoints.CheckpointError) as e:
     parser.error(str(e))
   finally:
     processes.leave(code)
@@ -127,7 +128,7 @@ def _use_cpu_devices(args: argparse.Namespace) -> None:
   the run trained on (``config.json``; per process), so that it continues as it ran."""
   n = args.cpu_devices
   if args.resume:
-    payload = plan_lib.read_config(args.resume)
+    payload = folder.read_config(args.resume)
     if isinstance(payload, dict) and payload.get("platform") == "cpu":
       n = payload.get("device_count")
       procs = payload.get("processes", 1)
@@ -205,7 +206,7 @@ def _run(plan: plan_lib.Plan, args: argparse.Namespace, programs=None) -> int:
   except TimeLimit as e:
     log(f"time limit: {e}", flush=True)
     return EXIT_TIME_LIMIT
-  except (io.MetricsError, io.CheckpointError):
+  except (rows.MetricsError, checkpoints.CheckpointError):
     raise
   except KeyboardInterrupt as e:  # Ctrl-C or SIGTERM, taken where nothing is half-written
     interrupts.say(_stopped(plan, type(e)))

@@ -94,7 +94,7 @@ def make_parser(task: str) -> argparse.ArgumentParser:
   _add_size_flags(p, paper, quick)
   p.add_argument("--envs-per-seed", type=int, default=None, metavar="E",
                  help="E envs per seed with the preset's schedule and gradient samples per env "
-                      "step (methods.widen; --steps etc. then count vector steps of E envs; "
+                      "step (methods.widen_layer; --steps etc. then count vector steps of E envs; "
                       "default: 1)")
   p.add_argument("--grad-steps", type=int, default=None, metavar="U",
                  help="with --envs-per-seed: TD3 updates per vector step, each of batch x E/U "
@@ -247,7 +247,7 @@ def _defaults(task: str) -> dict:
   out = collections.defaultdict(dict)
   for preset in methods.PRESETS:
     for method in methods.METHODS:
-      config, _ = methods.make_preset(preset, method, task)
+      config, _ = methods.build_config(preset, method, task)
       for name, *_ in fields(config_lib.AgentConfig):
         if config.reads(name):
           out[name][preset, method] = config_lib.get(config, name)

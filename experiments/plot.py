@@ -42,8 +42,8 @@ from collections import defaultdict
 import numpy as np
 
 from experiments import stats
+from nonmono_jax.core.config import MODES  # the Middle's sub-policies (JAX-free)
 
-MODES = ("TD3", "PPO", "RANDOM")
 LABELS = {"ours": "Ours", "hiro": "HIRO", "ref-uniform": "Ref:Uniform", "ref-ppo": "Ref:PPO",
           "ours-no-reward-mod": "Ours w/o reward mod.", "ours-no-loss-mod": "Ours w/o loss mod.",
           "ours-no-mods": "Ours w/o both"}

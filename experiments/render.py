@@ -28,7 +28,7 @@ import numpy as np
 
 from experiments import plot as plot_lib
 from nonmono_jax.core import evaluate
-from nonmono_jax.host import io, plan as plan_lib
+from nonmono_jax.host import checkpoints, plan as plan_lib
 from nonmono_jax.host import programs as programs_lib
 
 
@@ -39,7 +39,7 @@ def _saved(run_dir: str, method: str | None):
   method = next(iter(plan.configs)) if method is None else method
   if method not in plan.configs:
     raise ValueError(f"method {method!r} is not in this run ({', '.join(plan.configs)})")
-  ckpts = io.Checkpoints(os.path.join(run_dir, "checkpoints", method))
+  ckpts = checkpoints.Checkpoints(os.path.join(run_dir, "checkpoints", method))
   step = ckpts.latest_step()
   if step is None:
     ckpts.close()
@@ -194,7 +194,7 @@ def key(ax) -> list[str]:
 
 
 def main(argv=None) -> int:
-  io.quiet_storage_leftovers()
+  checkpoints.quiet_storage_leftovers()
   p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
   p.add_argument("dir", help="a run folder")
   p.add_argument("--method", default=None, help="default: the run's first method")
@@ -219,7 +219,7 @@ def main(argv=None) -> int:
       seed, score, at = ranked_seed(args.dir, args.method, args.seed)
       print(f"{args.seed} seed: {seed} (S_E {score:.2f} at {at} env steps)")
     roll = rollout(args.dir, args.method, seed, args.key)
-  except (ValueError, OSError, io.CheckpointError) as e:
+  except (ValueError, OSError, checkpoints.CheckpointError) as e:
     p.exit(2, f"{p.prog}: error: {e}\n")
   for warning in roll["warnings"]:
     print(f"warning: {warning}", file=sys.stderr)

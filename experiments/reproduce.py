@@ -27,7 +27,7 @@ import io as text_io
 import sys
 import tempfile
 
-from nonmono_jax.host import io, plan as plan_lib, run
+from nonmono_jax.host import folder, plan as plan_lib, provenance, rows as rows_lib, run
 
 EXIT_DIFFER, EXIT_BAD_INPUT = 1, 2
 
@@ -37,7 +37,7 @@ class Comparison:
   """The rows of one method compared so far."""
 
   method: str
-  columns: tuple = io.COLUMNS  # the folder's metrics.csv's (an earlier version's: fewer)
+  columns: tuple = rows_lib.COLUMNS  # the folder's metrics.csv's (an earlier version's: fewer)
   equal: int = 0
   missing: int = 0  # rows the folder does not have (it stopped earlier)
   differ: list = dataclasses.field(default_factory=list)  # (env_step, seed, [(col, a, b)])
@@ -69,15 +69,15 @@ class Comparison:
             f"{shown}{'; ...' if len(fields) > 3 else ''})")
 
 
-def format_row(row: dict, columns=io.COLUMNS) -> str:
-  """A row as ``metrics.csv`` holds it (``io.MetricsFile.append``), without the newline; a
+def format_row(row: dict, columns=rows_lib.COLUMNS) -> str:
+  """A row as ``metrics.csv`` holds it (``rows.MetricsFile.append``), without the newline; a
   file of an earlier version has fewer ``columns``."""
   buffer = text_io.StringIO()
   csv.DictWriter(buffer, columns, lineterminator="\n", extrasaction="ignore").writerow(row)
   return buffer.getvalue()[:-1]
 
 
-def changed_fields(line_a: str, line_b: str, columns=io.COLUMNS) -> list:
+def changed_fields(line_a: str, line_b: str, columns=rows_lib.COLUMNS) -> list:
   """[(column, value in a, value in b)] where two ``metrics.csv`` lines differ."""
   a, b = next(csv.reader([line_a])), next(csv.reader([line_b]))
   return [(c, x, y) for c, x, y in zip(columns, a, b) if x != y]
@@ -87,7 +87,7 @@ def committed_rows(folder: str) -> dict:
   """(method, env_step, seed) -> the line of the folder's ``metrics.csv``."""
   path = f"{folder}/metrics.csv"
   out = {}
-  for line in io.good_lines(path):
+  for line in rows_lib.good_lines(path):
     values = next(csv.reader([line]))
     out[values[1], int(values[3]), int(values[2])] = line
   return out
@@ -100,7 +100,7 @@ def host_line(payload: dict) -> str:
             "recorded): rows can differ here for that reason alone")
   made_on = (f"{saved.get('cpu')} (family {saved.get('cpu_family')}, model "
              f"{saved.get('cpu_model')})")
-  moved = plan_lib.host_differs(payload)
+  moved = provenance.host_differs(payload)
   if moved:
     return (f"made on {made_on}; this host differs ({moved}): expect the rows to part after "
             f"the first updates")
@@ -117,7 +117,7 @@ def reproduce(folder: str, steps: int | None, wanted: list[str] | None, log=prin
     raise ValueError(f"{folder} has no method {', '.join(unknown)} (it has "
                      f"{', '.join(plan.configs)})")
   committed = committed_rows(folder)
-  columns = io.file_columns(f"{folder}/metrics.csv")
+  columns = rows_lib.file_columns(f"{folder}/metrics.csv")
   results = {m: Comparison(m, columns) for m in wanted}
   with tempfile.TemporaryDirectory() as tmp:
     plan = dataclasses.replace(plan, out=tmp, warnings=[])
@@ -157,12 +157,12 @@ def main(argv=None) -> int:
   try:
     if args.steps is not None and args.steps <= 0:
       raise ValueError(f"--steps must be positive, got {args.steps}")
-    payload = plan_lib.read_config(args.folder)
+    payload = folder.read_config(args.folder)
     if payload.get("platform") == "cpu" and isinstance(payload.get("device_count"), int):
       run.use_cpu_devices(payload["device_count"])  # the device count the run trained on
     print(f"{args.folder}: {host_line(payload)}", flush=True)
     comparisons = reproduce(args.folder, args.steps, args.method)
-  except (ValueError, io.MetricsError) as e:
+  except (ValueError, rows_lib.MetricsError) as e:
     print(f"{p.prog}: error: {e}", file=sys.stderr)
     return EXIT_BAD_INPUT
   for c in comparisons:

@@ -11,10 +11,11 @@ import pytest
 
 import envs
 from nonmono_jax.core import agent as agent_lib
-from nonmono_jax.core import hierarchy, homeostasis, modes, numbers, ppo, td3, train
+from nonmono_jax.core import hierarchy, homeostasis, lanes, ppo, summary, td3, train
 from nonmono_jax.core import config as config_lib
 from nonmono_jax.core.config import AgentConfig, TopConfig
-from nonmono_jax.core.switch import TriggerState
+from nonmono_jax.core.modes.top import TopState
+from nonmono_jax.core.modes.trigger import TriggerState
 from nonmono_jax.host import methods
 
 C, HORIZON, TOP_EVERY, MID_PPO_EVERY = 5, 25, 50, 15
@@ -36,9 +37,9 @@ SMALL = {
 
 def small_config(method: str, overrides=None) -> AgentConfig:
   """The method's PointPush config at a test's size; the Middle keeps the method's smoothing."""
-  smoothing = methods.make_config(method, "PointPush").middle.target_smoothing
-  return methods.make_config(method, "PointPush", config_lib.merge(
-      SMALL, {"middle": _small, "middle.target_smoothing": smoothing}, overrides or {}))
+  smoothing = methods.build_config("paper", method, "PointPush")[0].middle.target_smoothing
+  return methods.build_config("paper", method, "PointPush", config_lib.merge(
+      SMALL, {"middle": _small, "middle.target_smoothing": smoothing}, overrides or {}))[0]
 
 
 class Run:
@@ -48,7 +49,7 @@ class Run:
     self.env = envs.make("PointPush", episode_length=EPISODE)
     self.config = small_config(method)
     self.agent = agent_lib.make_agent(self.env, self.config)
-    ag, hp = self.agent, numbers.of(self.config)
+    ag, hp = self.agent, lanes.of(self.config)
 
     def body(st, t):
       mode = st.mode
@@ -109,6 +110,21 @@ def test_mode_counts_add_up_to_steps_after_warmup(runs, method):
 
 
 @pytest.mark.parametrize("method", ALL)
+def test_the_rows_summary_reads_what_the_step_reports(runs, method):
+  """core/summary.py looks every metric up by the name the step gives it: a renamed one fails
+  here (KeyError), not as an empty column of a run's metrics.csv."""
+  r = runs(method)
+  # the run records values: their mean over the run stands in for each metric's reduction
+  reduced = {k: v.mean(0) for k, v in r.metrics.items()}
+  s = jax.tree.map(np.asarray, summary.summarise(r.end, reduced))
+  np.testing.assert_array_equal(s.cum_steps, r.end.mode_steps)
+  assert (s.updates.low > 0).all() and (s.updates.middle > 0).all()
+  assert np.isfinite(s.losses.low_critic).all() and np.isfinite(s.losses.middle_actor).all()
+  assert set(s.params_finite) == set(r.end.learner_params())
+  assert all(ok.all() for ok in [*s.params_finite.values(), *s.metrics_finite.values()])
+
+
+@pytest.mark.parametrize("method", ALL)
 def test_buffers_and_update_clocks(runs, method):
   r = runs(method)
   np.testing.assert_array_equal(r.end.low_buffer.size, STEPS * ENVS)
@@ -135,7 +151,7 @@ def test_buffers_and_update_clocks(runs, method):
     np.testing.assert_array_equal(m["horizon/updated"].sum(0), STEPS // HORIZON)
     assert not _same(r.mid.chooser.learner.params, r.end.chooser.learner.params)
   else:
-    assert not isinstance(r.end.chooser, modes.TopState) and "top/updated" not in m
+    assert not isinstance(r.end.chooser, TopState) and "top/updated" not in m
 
 
 def test_hiro_never_leaves_td3(runs):
@@ -230,7 +246,7 @@ def test_gates_stay_branches_under_vmap(runs):
   """Each horizon gate is a ``cond`` in the vmapped step's jaxpr, not a select of both sides."""
   r = runs("ours")
   states = jax.vmap(r.agent.init)(r.keys)
-  hp = numbers.of(r.config)
+  hp = lanes.of(r.config)
   jaxpr = str(jax.make_jaxpr(jax.vmap(r.agent.step, in_axes=(0, None, None)))(
       states, jp.array(0), hp))
   # episode reset, segment end, Top horizon, Low, Middle, Middle PPO, Top PPO, evaluation, and
@@ -246,17 +262,17 @@ def test_every_method_builds_from_its_preset():
   for method in methods.METHODS:
     config = small_config(method)
     agent_lib.make_agent(env, config)
-  ours = methods.make_config("ours", "AntFall")
+  ours = methods.build_config("paper", "ours", "AntFall")[0]
   assert ours.top.alpha == (-0.2, -0.2, 0.7) and ours.top.s_o == (0.6, 0.6, 0.9)
-  assert methods.make_config("ref-ppo", "AntPush").homeostasis.rho == 0.01
-  assert methods.make_config("ref-uniform", "AntPush").homeostasis.rho == 0.0001
-  assert methods.make_config("ref-uniform", "AntPush").explore_mode == "random"
-  nr = methods.make_config("ours-no-reward-mod", "AntPush").top
-  nl = methods.make_config("ours-no-loss-mod", "AntPush").top
-  nm = methods.make_config("ours-no-mods", "AntPush").top
+  assert methods.build_config("paper", "ref-ppo", "AntPush")[0].homeostasis.rho == 0.01
+  assert methods.build_config("paper", "ref-uniform", "AntPush")[0].homeostasis.rho == 0.0001
+  assert methods.build_config("paper", "ref-uniform", "AntPush")[0].explore_mode == "random"
+  nr = methods.build_config("paper", "ours-no-reward-mod", "AntPush")[0].top
+  nl = methods.build_config("paper", "ours-no-loss-mod", "AntPush")[0].top
+  nm = methods.build_config("paper", "ours-no-mods", "AntPush")[0].top
   assert (nr.reward_mod, nr.loss_mod, nl.reward_mod, nl.loss_mod) == (False, True, True, False)
   assert not nm.reward_mod and not nm.loss_mod
-  push = methods.make_config("ours", "AntPush")
+  push = methods.build_config("paper", "ours", "AntPush")[0]
   assert push.warmup_steps == 100_000 and push.top.starting_steps == 250_000
   assert push.c == 10 and push.top.horizon == 50 and push.low.hidden == (300, 300)
 
@@ -277,11 +293,11 @@ def test_bad_config_fails_before_compiling():
   with pytest.raises(ValueError, match="rho"):
     homeostasis.HomeostasisConfig(rho=2.0)
   with pytest.raises(ValueError, match="method must be one of"):
-    methods.make_config("sac", "AntPush")
+    methods.build_config("paper", "sac", "AntPush")[0]
   with pytest.raises(ValueError, match="task must be one of"):
-    methods.make_config("ours", "HalfCheetah")
+    methods.build_config("paper", "ours", "HalfCheetah")[0]
   with pytest.raises(ValueError, match="unknown AgentConfig field"):
-    methods.make_config("ours", "AntPush", {"horizon": 3})
+    methods.build_config("paper", "ours", "AntPush", {"horizon": 3})[0]
   with pytest.raises(ValueError, match="multiple of top.horizon"):
     agent_lib.make_agent(envs.make("PointMaze", episode_length=60), AgentConfig())
 

@@ -9,13 +9,13 @@ import mujoco
 import numpy as np
 import pytest
 
-from envs import ant, tasks
+from envs import ant, maze
 
 BUILDS = {"hiro": False, "optimised": True}
 
 
 def _model(task, optimised):
-  return ant.load(tasks.TASKS[task].layout(8.0), optimised=optimised)
+  return ant.load(maze.MAZES[task].layout(8.0), optimised=optimised)
 
 
 def _qadr(model, joint):
@@ -76,7 +76,7 @@ def _free_path_along_y(model, x, z, y0, exclude, block_x=0.0):
 def test_push_target_reachable_only_around_the_block(build):
   m = _model("Push", BUILDS[build])
   torso = m.body("torso").id
-  target_y = tasks.TASKS["Push"].target[1]
+  target_y = maze.MAZES["Push"].target[1]
   # Straight from the start towards the target (0, 19): the block is in the way at y = 4.
   assert _free_path_along_y(m, 0.0, 1.0, 0.0, torso) == pytest.approx(4.0, abs=1e-3)
   # With the block pushed aside into (2, 1) the corridor is open up to the far wall (y=20).
@@ -154,7 +154,7 @@ def _rollout(m, ctrls):
   return np.array(out)
 
 
-@pytest.mark.parametrize("task", sorted(tasks.TASKS))
+@pytest.mark.parametrize("task", sorted(maze.MAZES))
 def test_optimised_build_moves_the_ant_like_hiro(task):
   """Same controls, 10 s (100 env steps): the torso paths stay close.
 

@@ -11,17 +11,17 @@ import pytest
 
 import envs
 from nonmono_jax.core import ppo, td3, train
-from nonmono_jax.host import io, methods
+from nonmono_jax.host import checkpoints, methods
 
 
 def _trainer(physics: str):
   env = envs.make("AntPush", episode_length=20, physics=physics)
   small = td3.TD3Config(hidden=(16, 16), batch_size=4, buffer_size=100)
   net = ppo.PPOConfig(hidden=(16,))
-  config = methods.make_config("ours", "AntPush", {
+  config = methods.build_config("paper", "ours", "AntPush", {
       "warmup_steps": 10, "eval_every": 20, "eval_episodes": 2, "low": small, "middle": small,
       "middle.target_smoothing": False, "middle_ppo": net, "top.horizon": 10,
-      "top.train_every": 20, "top.starting_steps": 0, "top.ppo": net, "top.ppo.discrete": True})
+      "top.train_every": 20, "top.starting_steps": 0, "top.ppo": net, "top.ppo.discrete": True})[0]
   return train.make_trainer(env, config, num_seeds=2, chunk_steps=20)
 
 
@@ -57,7 +57,7 @@ def test_c_physics_checkpoint_resumes_bit_for_bit(c_trainer, tmp_path):
   straight, _ = c_trainer.chunk(straight, 0)
   straight, m_straight = c_trainer.chunk(straight, 20)
   states, _ = c_trainer.chunk(c_trainer.init(jax.random.PRNGKey(1)), 0)
-  ckpts = io.Checkpoints(str(tmp_path / "ckpt"))
+  ckpts = checkpoints.Checkpoints(str(tmp_path / "ckpt"))
   ckpts.save(20, states)
   like = jax.eval_shape(c_trainer.init, jax.random.PRNGKey(0))
   step, restored = ckpts.restore_newest(like)

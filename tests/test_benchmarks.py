@@ -11,9 +11,9 @@ from nonmono_jax.host import methods
 
 
 def test_a_compiled_chunk_is_the_trainers_chunk():
-  config = methods.make_config("ours", "PointMaze", {
+  config = methods.build_config("paper", "ours", "PointMaze", {
       "warmup_steps": 20, "top.starting_steps": 20, "low.hidden": (16, 16),
-      "middle.hidden": (16, 16), "low.batch_size": 8, "middle.batch_size": 8})
+      "middle.hidden": (16, 16), "low.batch_size": 8, "middle.batch_size": 8})[0]
   trainer = train.make_trainer(envs.make("PointMaze", episode_length=50), config, num_seeds=2,
                                chunk_steps=60)
   key = jax.random.PRNGKey(3)

@@ -2,6 +2,8 @@
 host is exact, a simulation does not depend on the batch it is stepped in, instability is
 flagged, and the motion is MJX's (the accelerator path) within stated tolerances."""
 
+from types import SimpleNamespace
+
 import jax
 import jax.numpy as jp
 import mujoco
@@ -105,17 +107,29 @@ def test_unstable_simulation_is_flagged(push, tmp_path, monkeypatch):
   s = jax.jit(jax.vmap(push.step))(s0, jp.zeros((2, 8)))
   np.testing.assert_array_equal(np.asarray(jax.vmap(push.unstable)(s)), [0.0, 1.0])
   # The trainer's check names the lane and where (run.first_unstable).
-  metrics = {"physics/unstable": np.array([0.0, 0.0, 3.0]), "eval/unstable": np.zeros(3)}
-  assert run.first_unstable(metrics) == (2, "training")
-  assert run.first_unstable({"eval/unstable": np.array([0.0, 1.0])}) == (1, "evaluation")
-  assert run.first_unstable({"physics/unstable": np.zeros(2)}) is None
+  chunk = lambda training, evaluation: SimpleNamespace(
+      unstable_steps=np.array(training), unstable_evaluation=np.array(evaluation))
+  assert run.first_unstable(chunk([0.0, 0.0, 3.0], [0.0, 0.0, 0.0])) == (2, "training")
+  assert run.first_unstable(chunk([0.0, 0.0], [0.0, 1.0])) == (1, "evaluation")
+  assert run.first_unstable(chunk([0.0, 0.0], [0.0, 0.0])) is None
 
 
 def test_physics_option_is_checked_and_resolved():
-  with pytest.raises(ValueError, match="physics must be one of auto, c, mjx"):
+  from envs import c_physics as c_lib, mjx_physics
+  from nonmono_jax.host import plan
+
+  with pytest.raises(ValueError, match="physics must be one of c, mjx"):
     envs.make("AntPush", physics="gpu")
-  assert envs.make("AntFall").physics == "c"  # auto on a CPU backend
-  assert envs.make("AntFall", physics="mjx").physics == "mjx"
+  with pytest.raises(ValueError, match="plan resolves auto"):  # the plan alone resolves it
+    envs.make("AntPush", physics="auto")
+  assert plan.run_physics("AntFall", "auto") == plan.run_physics("AntFall", None) == "c"  # CPU
+  with pytest.raises(ValueError, match="--physics must be one of auto, c, mjx"):
+    plan.run_physics("AntPush", "gpu")
+  c = envs.make("AntFall")
+  assert c.physics == "c" and isinstance(c.engine, c_lib.CPhysics)  # no MJX system built
+  assert not hasattr(c.engine, "sys") and not hasattr(c, "sys")
+  mjx = envs.make("AntFall", physics="mjx")
+  assert mjx.physics == "mjx" and isinstance(mjx.engine, mjx_physics.MjxPhysics)
 
 
 def test_ant_falls_into_the_chasm_and_stands_on_platforms_in_the_c_env():

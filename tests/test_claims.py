@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from experiments import claims
-from nonmono_jax.host import io
+from nonmono_jax.host import rows as rows_lib
 
 STEPS = np.arange(110_000, 1_000_001, 10_000)
 
@@ -16,7 +16,7 @@ def _rows(method, s_e, ppo=2000, seeds=8, upto=1_000_000, modes=None):
   rows = []
   for step in STEPS[STEPS <= upto]:
     for seed in range(seeds):
-      row = {c: "" for c in io.COLUMNS}
+      row = {c: "" for c in rows_lib.COLUMNS}
       row.update(task="AntPush", method=method, seed=str(seed), env_step=str(step),
                  eval_success=str(s_e(seed, step)))
       counts = ({m: modes[m][seed] for m in modes} if modes else

@@ -269,30 +269,34 @@ def test_first_non_finite_names_seed_and_level():
 
   import numpy as np
 
-  from nonmono_jax.host import io
+  from nonmono_jax.core import summary
+  from nonmono_jax.host import run
 
-  params = lambda: {"w": np.ones((3, 4)), "b": np.zeros((3,))}
-  states = SimpleNamespace(low=SimpleNamespace(params=params()),
-                           middle=SimpleNamespace(params=params()), middle_ppo=None,
-                           top=SimpleNamespace(params=params()), s_e=np.zeros(3))
-  metrics = {"top/loss": np.zeros(3), "reward": np.zeros(3)}
-  assert io.first_non_finite(states, metrics) is None
-  states.top.params["w"][2, 1] = np.nan
-  assert io.first_non_finite(states, metrics) == (2, "top")
+  # the core says what is finite (summary.py), the host which lane and where
+  params = {level: {"w": np.ones((3, 4)), "b": np.zeros((3,))}
+            for level in ("low", "middle", "top")}
+  states = SimpleNamespace(learner_params=lambda: params)
+  metrics = {"top/loss": np.zeros(3), "reward": np.zeros(3), "horizon/p_TD3": np.full(3, np.nan)}
+  check = lambda: run.first_non_finite(SimpleNamespace(
+      reward=metrics["reward"], params_finite=summary.params_finite(states),
+      metrics_finite=summary.metrics_finite(states, metrics)))
+  assert check() is None
+  params["top"]["w"][2, 1] = np.nan
+  assert check() == (2, "top")
   metrics["top/loss"][1] = np.inf
-  assert io.first_non_finite(states, metrics) == (1, "metric top/loss")
+  assert check() == (1, "metric top/loss")
 
 
 def test_non_finite_stops_the_run_after_the_last_good_checkpoint(tmp_path, monkeypatch, capsys):
-  from nonmono_jax.host import io
+  from nonmono_jax.host import run
 
   calls = []
 
-  def fake(states, metrics):  # a NaN appears in the third chunk
+  def fake(summary):  # a NaN appears in the third chunk
     calls.append(1)
     return (1, "middle") if len(calls) == 3 else None
 
-  monkeypatch.setattr(io, "first_non_finite", fake)
+  monkeypatch.setattr(run, "first_non_finite", fake)
   out = tmp_path / "run"
   assert cli.main("PointMaze", TINY + ["--method", "ours", "--out", str(out)]) == 1
   err = capsys.readouterr().err
@@ -367,8 +371,11 @@ def test_render_picks_the_best_and_the_worst_seed(reference, tmp_path, capsys):
 def test_widen_keeps_the_paper_per_env_step():
   from nonmono_jax.host import methods
 
-  config, spec = methods.make_preset("paper", "ours", "AntPush")
-  wide, wspec = methods.widen(config, spec, 64, 8)
+  def widen(envs_per_seed, grad_steps=None):
+    return methods.build_config("paper", "ours", "AntPush", widen={
+        "envs_per_seed": envs_per_seed, "grad_steps": grad_steps})
+
+  wide, wspec = widen(64, 8)
   assert (wide.num_envs, wide.low_updates, wide.middle_updates) == (64, 8, 8)
   # gradient samples per env step: 8 x 800 per 64 env steps = the paper's 100 per env step
   assert wide.low.batch_size == wide.middle.batch_size == 800
@@ -378,21 +385,21 @@ def test_widen_keeps_the_paper_per_env_step():
   assert wspec.steps * 64 >= 3_150_000 and wspec.steps % wspec.chunk == 0
   assert wspec.checkpoint_every % wspec.chunk == 0
   assert (wide.c, wide.top.horizon, wide.top.train_every) == (10, 50, 400)  # per env
-  exact, _ = methods.widen(config, spec, 16)
+  exact, _ = widen(16)
   assert (exact.low_updates, exact.low.batch_size) == (16, 100)  # U = E: the paper's updates
   with pytest.raises(ValueError, match="--grad-steps must be in"):
-    methods.widen(config, spec, 16, 32)
+    widen(16, 32)
   with pytest.raises(ValueError, match="--envs-per-seed must be >= 1"):
-    methods.widen(config, spec, 0)
+    widen(0)
 
 
 def test_a_widened_run_resumes_with_its_saved_plan(tmp_path):
-  from nonmono_jax.host import plan as plan_lib
+  from nonmono_jax.host import folder, plan as plan_lib
 
   args = cli.make_parser("PointMaze").parse_args(
       ["--method", "ours", "--envs-per-seed", "4", "--grad-steps", "2", "--out", str(tmp_path)])
   plan = cli.plan_from_args("PointMaze", args)
-  again = plan_lib.from_json(json.loads(json.dumps(plan_lib.to_json(plan))), str(tmp_path))
+  again = plan_lib.from_json(json.loads(json.dumps(folder.to_json(plan))), str(tmp_path))
   assert again.configs == plan.configs and again.spec == plan.spec and not again.warnings
   assert plan.configs["ours"].num_envs == 4 and plan.spec.steps == 10_000
   with pytest.raises(ValueError, match="--grad-steps needs --envs-per-seed"):

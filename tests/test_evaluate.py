@@ -83,10 +83,14 @@ def test_the_final_distance_is_read_where_the_codes_episode_stops():
              "distance": jp.array([5.0, 4.0, 3.0, 2.0, 6.0]),
              "reward": -jp.array([5.0, 4.0, 3.0, 2.0, 6.0]), "unstable": jp.zeros(5)}
   for kind in ("requery", "ppo"):
-    assert [float(x) for x in evaluate.outcome(records, kind)] == [1.0, 3.0, -12.0, 0.0]
-  assert [float(x) for x in evaluate.outcome(records, "held")] == [1.0, 6.0, -20.0, 0.0]
+    assert _values(evaluate.outcome(records, kind)) == [1.0, 3.0, -12.0, 0.0]
+  assert _values(evaluate.outcome(records, "held")) == [1.0, 6.0, -20.0, 0.0]
   never = {**records, "success": jp.zeros(5)}
-  assert [float(x) for x in evaluate.outcome(never, "requery")] == [0.0, 6.0, -20.0, 0.0]
+  assert _values(evaluate.outcome(never, "requery")) == [0.0, 6.0, -20.0, 0.0]
+
+
+def _values(o: evaluate.Outcome) -> list[float]:
+  return [float(o.success), float(o.distance), float(o.return_), float(o.unstable)]
 
 
 def _code_loop(low_scale, goal_shift, key):
@@ -114,8 +118,8 @@ def test_the_scan_judges_episodes_as_the_codes_loop():
     for k in keys:
       got = run(low, shift, k)
       want = _code_loop(low, shift, k)
-      assert float(got[0]) == want[0]
-      assert float(got[1]) == pytest.approx(want[1], abs=1e-5)
+      assert float(got.success) == want[0]
+      assert float(got.distance) == pytest.approx(want[1], abs=1e-5)
       judged.append(want[0])
   assert 0 < np.mean(judged) < 1
 

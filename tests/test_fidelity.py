@@ -15,7 +15,8 @@ import pytest
 import envs
 from nonmono_jax.core import buffers, evaluate, hierarchy, low as low_lib
 from nonmono_jax.core import middle as middle_lib
-from nonmono_jax.core import numbers, relabel, td3
+from nonmono_jax.core import lanes, relabel, td3
+from nonmono_jax.core.config import AgentConfig
 from nonmono_jax.host import methods
 
 OBS, ACT = 7, 2
@@ -27,7 +28,7 @@ def test_paper_presets(task, steps):
   """Buffers hold the whole run (nothing is evicted), actors update on every critic update,
   the Middle PPO's std is 0.6 goal units, Ref:PPO's stays 0.6 and trains every 40 steps."""
   for method in methods.METHODS:
-    config, spec = methods.make_preset("paper", method, task)
+    config, spec = methods.build_config("paper", method, task)
     assert spec.steps == steps
     assert config.low.buffer_size >= steps and config.middle.buffer_size >= steps // config.c
     assert config.low.policy_delay == config.middle.policy_delay == 1
@@ -39,12 +40,13 @@ def test_paper_presets(task, steps):
     else:
       assert config.middle_ppo.std_decay == 0.05 and config.middle_ppo_every == 30
   # a widened run (E envs per seed) holds the same env steps
-  config, spec = methods.widen(*methods.make_preset("paper", "ours", task), 16)
+  config, spec = methods.build_config("paper", "ours", task, widen={"envs_per_seed": 16})
   assert config.low.buffer_size >= spec.steps * 16 >= steps
 
 
 def test_policy_delay_one_updates_the_actor_on_every_update():
-  low = low_lib.make_low(OBS, ACT, 1.0, dataclasses.replace(SMALL, policy_delay=1))
+  low = low_lib.make_low(OBS, ACT, 1.0, AgentConfig(low=dataclasses.replace(SMALL,
+                                                                         policy_delay=1)))
   state = low.td3.init(jax.random.PRNGKey(0))
   buffer = low.init_buffer()
   tr = jax.vmap(low.transition)(jp.ones((8, OBS)), jp.ones((8, 3)), jp.ones((8, ACT)),
@@ -52,7 +54,7 @@ def test_policy_delay_one_updates_the_actor_on_every_update():
   buffer = buffers.add(buffer, tr)
   update = jax.jit(low.update)
   for t in range(3):
-    new, m = update(state, buffer, jax.random.PRNGKey(t), t, numbers.of(SMALL))
+    new, m = update(state, buffer, jax.random.PRNGKey(t), t, lanes.of(SMALL))
     assert m["actor_loss"] != 0
     assert not np.allclose(jax.tree.leaves(new.params.actor)[0],
                            jax.tree.leaves(state.params.actor)[0])
@@ -60,10 +62,10 @@ def test_policy_delay_one_updates_the_actor_on_every_update():
 
 
 def _middle(**fields):
-  config = methods.make_config("ours", "PointPush", {
+  config = methods.build_config("paper", "ours", "PointPush", {
       "low": SMALL, "middle": SMALL, "middle.target_smoothing": False,
-      "middle_ppo.hidden": (8,), **fields})
-  low = low_lib.make_low(OBS, ACT, 1.0, config.low)
+      "middle_ppo.hidden": (8,), **fields})[0]
+  low = low_lib.make_low(OBS, ACT, 1.0, config)
   return config, low, middle_lib.make_middle(OBS, ACT, jp.array([0.0, 9.5, 0.5]), config,
                                              low.td3.act)
 
@@ -107,14 +109,14 @@ def test_middle_transition_done_is_success_and_relabelled_at_store(success):
 def test_middle_ppo_stores_its_own_sample_in_other_modes(sample):
   config, _, mid = _middle(middle_ppo_sample=sample)
   td3_params = mid.td3.init(jax.random.PRNGKey(0)).params
-  ppo_params = mid.explorer.ppo.init(jax.random.PRNGKey(1)).params
+  ppo_params = mid.ppo.learner.init(jax.random.PRNGKey(1)).params
   obs, key, t = jp.ones(OBS), jax.random.PRNGKey(2), 0
   for mode in (hierarchy.TD3, hierarchy.RANDOM, hierarchy.PPO):
     g, stored, logp = mid.goal(td3_params, ppo_params, obs, mode, key, False, t,
                               config.middle_goal_noise)
     x = jp.concatenate([obs, jp.array([0.0, 9.5, 0.5])])
-    sampled, sampled_logp = mid.explorer.ppo.act(ppo_params, x, jax.random.split(key, 3)[2],
-                                        mid.explorer.std(t))
+    sampled, sampled_logp = mid.ppo.learner.act(ppo_params, x, jax.random.split(key, 3)[2],
+                                        mid.ppo.std(t))
     if sample == "own":  # PPO's own sample, whichever mode ran the segment
       np.testing.assert_allclose(stored, sampled)
       np.testing.assert_allclose(logp, sampled_logp, rtol=1e-6)
@@ -122,7 +124,7 @@ def test_middle_ppo_stores_its_own_sample_in_other_modes(sample):
         assert not np.allclose(stored, g)
     else:
       np.testing.assert_allclose(stored, g)
-      want = mid.explorer.ppo.log_prob(ppo_params, x, g, mid.explorer.std(t))
+      want = mid.ppo.learner.log_prob(ppo_params, x, g, mid.ppo.std(t))
       np.testing.assert_allclose(logp, want, rtol=1e-6)
 
 

@@ -23,21 +23,3 @@ def test_low_done_threshold():
 
 def test_middle_reward_is_a_tenth_of_the_sum():
   np.testing.assert_allclose(h.middle_reward(jp.full((10,), -7.0)), -7.0, rtol=1e-6)
-
-
-def test_success_ratio_and_top_done_per_mode():
-  s_o = jp.array([0.6, 0.6, 0.9])  # Ant Fall
-  ratio = h.success_ratio(jp.array(35.0), jp.array(50.0))
-  np.testing.assert_allclose(ratio, 0.7)
-  assert float(h.top_done(ratio, s_o, h.TD3)) == 1.0
-  assert float(h.top_done(ratio, s_o, h.RANDOM)) == 0.0
-  assert float(h.success_ratio(jp.array(0.0), jp.array(0.0))) == 0.0
-
-
-def test_reward_modification_penalises_modes_with_larger_alpha():
-  alpha = jp.array([0.0, 0.4, 0.7])  # Ant Push
-  r = jp.array(-100.0)
-  got = [float(h.modified_reward(r, alpha, m)) for m in (h.TD3, h.PPO, h.RANDOM)]
-  np.testing.assert_allclose(got, [-100.0, -140.0, -170.0])
-  # Ant Fall's negative alpha makes TD3's reward less negative.
-  np.testing.assert_allclose(h.modified_reward(r, jp.array([-0.2, -0.2, 0.7]), h.TD3), -80.0)

@@ -136,5 +136,5 @@ def test_the_ref_presets_are_the_papers(task, rho):
   text's periods (docs/fidelity.md)."""
   from nonmono_jax.host import methods
   for method, value in rho.items():
-    h = methods.make_config(method, task).homeostasis
+    h = methods.build_config("paper", method, task)[0].homeostasis
     assert (h.rho, h.explore_steps, h.k, h.cadence) == (value, 100, 30, "periods")

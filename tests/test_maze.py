@@ -4,7 +4,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from envs import ant, maze, point_maze, tasks
+from envs import ant, maze, point_maze
 
 
 def _probe_height(model, x, y, exclude_body=-1, top=30.0):
@@ -24,14 +24,14 @@ def _expected_height(layout, cell):
 
 
 def _models(task_name):
-  task = tasks.TASKS[task_name]
+  task = maze.MAZES[task_name]
   yield "ant-hiro", task.layout(8.0), ant.load(task.layout(8.0), optimised=False)
   yield "ant-optimised", task.layout(8.0), ant.load(task.layout(8.0), optimised=True)
   lay = task.layout(point_maze.SCALING)
   yield "point", lay, mujoco.MjModel.from_xml_string(point_maze.point_maze_xml(lay))
 
 
-@pytest.mark.parametrize("task_name", sorted(tasks.TASKS))
+@pytest.mark.parametrize("task_name", sorted(maze.MAZES))
 def test_every_cell_height_by_ray(task_name):
   for build, layout, model in _models(task_name):
     robot = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY,
@@ -47,13 +47,13 @@ def test_every_cell_height_by_ray(task_name):
 
 def test_hiro_coordinates():
   """docs/spec.md, section 1: robot at the origin, Push block at (0, 8), Fall block at (8, 8)."""
-  push = tasks.TASKS["Push"].layout(8.0)
+  push = maze.MAZES["Push"].layout(8.0)
   assert push.cell_center(*push.robot_cell) == (0.0, 0.0)
   (blk,) = push.blocks()
   assert blk.box.center == (0.0, 8.0, 2.0) and blk.box.half == (4.0, 4.0, 2.0)
   assert blk.axes == ("x", "y") and blk.mass == 0.0002
   assert not push.elevated and push.height == 4.0
-  fall = tasks.TASKS["Fall"].layout(8.0)
+  fall = maze.MAZES["Fall"].layout(8.0)
   (blk,) = fall.blocks()
   assert fall.elevated and fall.floor_z == 4.0
   assert blk.box.center == (8.0, 8.0, 6.0)
@@ -75,7 +75,7 @@ def test_merge_cells_is_an_exact_disjoint_cover():
 
 
 def test_optimised_build_has_fewer_colliding_boxes_and_same_surface():
-  for name, task in tasks.TASKS.items():
+  for name, task in maze.MAZES.items():
     layout = task.layout(8.0)
     hiro, opt = ant.load(layout, optimised=False), ant.load(layout, optimised=True)
 

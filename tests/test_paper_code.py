@@ -14,9 +14,9 @@ import pytest
 import envs
 from nonmono_jax.core import agent as agent_lib
 from nonmono_jax.core import low as low_lib
-from nonmono_jax.core import hierarchy, middle as middle_lib, networks, numbers, ppo, td3
-from nonmono_jax.core import top as top_lib
-from nonmono_jax.core.config import TopConfig
+from nonmono_jax.core import hierarchy, middle as middle_lib, networks, lanes, ppo, td3
+from nonmono_jax.core.modes import top as top_lib
+from nonmono_jax.core.config import AgentConfig, TopConfig
 from nonmono_jax.host import methods
 
 OBS, ACT = 7, 2
@@ -33,13 +33,13 @@ CODE = {"low.init": "torch", "middle.init": "torch", "middle_ppo.init": "torch",
 @pytest.mark.parametrize("method", methods.METHODS)
 def test_ant_presets_take_the_codes_choices_and_point_presets_keep_ours(method):
   for task in ("AntPush", "AntFall", "AntMaze"):
-    config = methods.make_config(method, task)
+    config = methods.build_config("paper", method, task)[0]
     for path, value in CODE.items():
       part = config
       for name in path.split("."):
         part = getattr(part, name)
       assert part == value, (task, path)
-  point = methods.make_config(method, "PointPush")
+  point = methods.build_config("paper", method, "PointPush")[0]
   assert (point.low.init, point.low_done_goal, point.scored_state, point.episode_start,
           point.middle_td3_input, point.returns_cross_episodes,
           point.middle_ppo.decay_at_start) == ("lecun", "next", "next", "reset", "state_target",
@@ -79,7 +79,7 @@ def test_middle_ppo_std_decays_at_step_zero_in_the_code():
 
 @pytest.mark.parametrize("done_goal", ["next", "current"])
 def test_low_done_tests_the_current_goal_in_the_code(done_goal):
-  low = low_lib.make_low(OBS, ACT, 1.0, SMALL, done_goal=done_goal)
+  low = low_lib.make_low(OBS, ACT, 1.0, AgentConfig(low=SMALL, low_done_goal=done_goal))
   s, a = jp.zeros(OBS), jp.zeros(ACT)
   near, far = jp.array([1.0, 0.0, 0.0]), jp.array([5.0, 0.0, 0.0])
   s_moved = s.at[0].set(4.5)  # from s the goal `far` is 5 away, from s' 0.5
@@ -89,9 +89,9 @@ def test_low_done_tests_the_current_goal_in_the_code(done_goal):
 
 def test_middle_td3_sees_the_state_alone_in_the_code():
   target = jp.array([0.0, 9.5, 0.5])
-  config = methods.make_config("ours", "PointPush", {
-      "low": SMALL, "middle": SMALL, "middle_ppo.hidden": (8,), "middle_td3_input": "state"})
-  low = low_lib.make_low(OBS, ACT, 1.0, config.low)
+  config = methods.build_config("paper", "ours", "PointPush", {
+      "low": SMALL, "middle": SMALL, "middle_ppo.hidden": (8,), "middle_td3_input": "state"})[0]
+  low = low_lib.make_low(OBS, ACT, 1.0, config)
   mid = middle_lib.make_middle(OBS, ACT, target, config, low.td3.act)
   params = mid.td3.init(jax.random.PRNGKey(0)).params
   assert params.actor["params"]["dense_0"]["kernel"].shape[0] == OBS  # pi_M(s)
@@ -101,22 +101,23 @@ def test_middle_td3_sees_the_state_alone_in_the_code():
   buffer = mid.init_buffer()
   assert buffer.data["transition"].context.shape[-1] == 0
   # The Middle PPO still sees (s, target).
-  ppo_params = mid.explorer.ppo.init(jax.random.PRNGKey(1)).params
+  ppo_params = mid.ppo.learner.init(jax.random.PRNGKey(1)).params
   assert ppo_params["actor"]["params"]["dense_0"]["kernel"].shape[0] == OBS + 3
 
 
 @pytest.mark.parametrize("cross", [False, True])
 def test_ppo_returns_end_at_episode_ends_unless_they_cross_them(cross):
   top_config = TopConfig(ppo=ppo.PPOConfig(hidden=(8,), discrete=True))
-  top = top_lib.make_top(OBS, jp.zeros(3), top_config, cross)
+  top = top_lib.make_top(OBS, jp.zeros(3), AgentConfig(top=top_config,
+                                                      returns_cross_episodes=cross))
   h = top.start(top.ppo.init(jax.random.PRNGKey(0)).params, jp.zeros(OBS),
                 jax.random.PRNGKey(1), True)
   h = top.accumulate(h, -30.0, 0.0)  # far from the target: done_m = 0
-  step, m = top.close(h, False, True, numbers.of(top_config))  # at an episode's end
+  step, m = top.close(h, False, True, lanes.of(top_config))  # at an episode's end
   assert float(m["done_m"]) == 0.0 and float(step.done) == (0.0 if cross else 1.0)
-  config = methods.make_config("ours", "PointPush", {
-      "low": SMALL, "middle": SMALL, "middle_ppo.hidden": (8,), "returns_cross_episodes": cross})
-  low = low_lib.make_low(OBS, ACT, 1.0, config.low)
+  config = methods.build_config("paper", "ours", "PointPush", {
+      "low": SMALL, "middle": SMALL, "middle_ppo.hidden": (8,), "returns_cross_episodes": cross})[0]
+  low = low_lib.make_low(OBS, ACT, 1.0, config)
   mid = middle_lib.make_middle(OBS, ACT, jp.zeros(3), config, low.td3.act)
   seg = mid.new_segment(jp.zeros(OBS), jp.zeros(3), jp.zeros(3), jp.zeros(()))
   _, ppo_step = mid.close(seg, True, low.td3.init(jax.random.PRNGKey(2)).params,
@@ -131,12 +132,12 @@ EPISODE, C = 20, 5
 def code_agent():
   env = envs.make("PointPush", episode_length=EPISODE)
   small = {"hidden": (8,), "batch_size": 4, "buffer_size": 200}
-  config = methods.make_config("hiro", "PointPush", {
+  config = methods.build_config("paper", "hiro", "PointPush", {
       "c": C, "warmup_steps": 10, "eval_every": 1000, "eval_episodes": 1,
       **{f"low.{k}": v for k, v in small.items()}, **{f"middle.{k}": v for k, v in small.items()},
-      "scored_state": "current", "episode_start": "last"})
+      "scored_state": "current", "episode_start": "last"})[0]
   agent = agent_lib.make_agent(env, config)
-  return env, agent, jax.jit(functools.partial(agent.step, hp=numbers.of(config)))
+  return env, agent, jax.jit(functools.partial(agent.step, hp=lanes.of(config)))
 
 
 def test_training_scores_the_state_before_the_step_and_keeps_the_last_goal(code_agent):
@@ -163,14 +164,14 @@ def first_state_agent():
   """The code's choices at an episode's start, ours: the Middle PPO."""
   env = envs.make("PointPush", episode_length=EPISODE)
   small = {"hidden": (8,), "batch_size": 4, "buffer_size": 200}
-  config = methods.make_config("ours", "PointPush", {
+  config = methods.build_config("paper", "ours", "PointPush", {
       "c": C, "warmup_steps": 10, "eval_every": 1000, "eval_episodes": 1, "top.horizon": 10,
       "middle_ppo_every": C, "top.train_every": 20, "middle_ppo.hidden": (8,),
       "top.ppo.hidden": (8,), **{f"low.{k}": v for k, v in small.items()},
       **{f"middle.{k}": v for k, v in small.items()}, "episode_start": "last",
-      "middle_td3_first_state": "reset"})
+      "middle_td3_first_state": "reset"})[0]
   agent = agent_lib.make_agent(env, config)
-  return agent, jax.jit(functools.partial(agent.step, hp=numbers.of(config)))
+  return agent, jax.jit(functools.partial(agent.step, hp=lanes.of(config)))
 
 
 def test_the_middle_td3_starts_an_episode_at_the_reset_state_and_the_ppo_at_the_last(
@@ -199,13 +200,13 @@ def test_the_middle_td3_starts_an_episode_at_the_reset_state_and_the_ppo_at_the_
 def test_warmup_goals_are_clipped_gaussians_in_the_code(kind):
   """The code's warm-up goals are clip(randn * range): about 32 % of each coordinate sits on
   the range's edge; uniform goals never do. The RANDOM mode keeps ``random_goal``."""
-  config = methods.make_config("ours", "PointPush", {"low": SMALL, "middle": SMALL,
+  config = methods.build_config("paper", "ours", "PointPush", {"low": SMALL, "middle": SMALL,
                                                      "middle_ppo.hidden": (8,),
-                                                     "warmup_goal": kind})
-  low = low_lib.make_low(OBS, ACT, 1.0, config.low)
+                                                     "warmup_goal": kind})[0]
+  low = low_lib.make_low(OBS, ACT, 1.0, config)
   mid = middle_lib.make_middle(OBS, ACT, jp.zeros(3), config, low.td3.act)
   td3_params = mid.td3.init(jax.random.PRNGKey(0)).params
-  ppo_params = mid.explorer.ppo.init(jax.random.PRNGKey(1)).params
+  ppo_params = mid.ppo.learner.init(jax.random.PRNGKey(1)).params
   goals = jax.vmap(lambda k, warm: mid.goal(td3_params, ppo_params, jp.zeros(OBS),
                                             hierarchy.RANDOM, k, warm, 0, 0.0)[0],
                    in_axes=(0, None))

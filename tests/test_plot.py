@@ -198,20 +198,20 @@ def test_drawing_the_same_figure_twice_writes_the_same_bytes(tmp_path):
 def test_folders_of_a_job_array_merge_their_seeds(tmp_path):
   """Independent runs of one method (a job array, --seed 0, 1) in separate folders: their
   seeds add up in the table and figures, they do not overwrite each other."""
-  from nonmono_jax.host import io
+  from nonmono_jax.host import rows as rows_lib
   for k in range(2):
     d = tmp_path / f"run{k}"
     d.mkdir()
     rows = []
     for step in (2000, 4000):
       for seed in range(3):
-        row = {c: "" for c in io.COLUMNS}
+        row = {c: "" for c in rows_lib.COLUMNS}
         row.update(task="PointMaze", method="ours", seed=seed, env_step=step,
                    eval_success=float(k), eval_return=-1.0,
                    **{f"cum_steps_{m}": 10 for m in plot.MODES})
         rows.append(row)
     with open(d / "metrics.csv", "w", newline="") as f:
-      w = csv.DictWriter(f, fieldnames=io.COLUMNS)
+      w = csv.DictWriter(f, fieldnames=rows_lib.COLUMNS)
       w.writeheader()
       w.writerows(rows)
   rows = plot.load([str(tmp_path / "run0"), str(tmp_path / "run1")])

@@ -9,7 +9,8 @@ import jax.numpy as jp
 import numpy as np
 import pytest
 
-from nonmono_jax.core import numbers, ppo
+from nonmono_jax.core import lanes, ppo
+from nonmono_jax.core.modes.top import loss_weights
 
 SMALL = (16, 16)
 
@@ -29,7 +30,7 @@ def _train(net, key, reward_fn, std, iters, obs):
   def body(state, k):
     batch = _rollout(net, state.params, k, obs, std, reward_fn)
     state, metrics = net.update(state, batch, std, jp.ones(batch.reward.shape),
-                                numbers.of(net.config))
+                                lanes.of(net.config))
     return state, metrics["loss"]
 
   state, losses = jax.jit(lambda s, ks: jax.lax.scan(body, s, ks))(
@@ -74,7 +75,7 @@ def test_per_sample_loss_matches_numpy_clipped_and_unclipped():
   old_logp = new_logp - jp.log(jp.array([1.5, 1 / 1.5, 1.1]))
   batch = ppo.Rollout(obs=obs, action=action, log_prob=old_logp, reward=rewards,
                       done=jp.ones(3))
-  loss, metrics = jax.jit(net.per_sample_loss)(params, batch, std, numbers.of(cfg))
+  loss, metrics = jax.jit(net.per_sample_loss)(params, batch, std, lanes.of(cfg))
 
   ret = np.array([1.0, -1.0, 0.0])
   v = np.asarray(net.value(params, obs))
@@ -96,7 +97,7 @@ def test_per_sample_loss_matches_numpy_clipped_and_unclipped():
   # clipped samples pass no gradient to the actor (the Gaussian entropy is parameter-free)
   def actor_loss(actor_params, i):
     p = {"actor": actor_params, "critic": params["critic"]}
-    return net.per_sample_loss(p, batch, std, numbers.of(cfg))[0][i]
+    return net.per_sample_loss(p, batch, std, lanes.of(cfg))[0][i]
 
   for i, zero in [(0, True), (1, True), (2, False)]:
     g = jax.grad(actor_loss)(params["actor"], i)
@@ -134,14 +135,6 @@ def test_gaussian_log_prob_is_a_normal_density(head):
   np.testing.assert_allclose(net.entropy(params, obs, 0.5), h, rtol=1e-5)
   ref = np.sum(-0.5 * ((action - mean) / sigma) ** 2 - np.log(sigma) - 0.5 * math.log(2 * np.pi))
   np.testing.assert_allclose(logp, ref, rtol=1e-5)
-
-
-def test_top_loss_weights():
-  modes = jp.array([0, 1, 2, 0])
-  w = ppo.top_loss_weights(modes, 0.3)
-  np.testing.assert_allclose(w, [0.7, 1.3, 1.3, 0.7], rtol=1e-6)
-  w = ppo.top_loss_weights(modes, jp.array([0.1, 0.2, 0.3, 0.4]), td3_mode=2)
-  np.testing.assert_allclose(w, [1.1, 1.2, 0.7, 1.4], rtol=1e-6)
 
 
 def test_gaussian_std_schedule():
@@ -188,7 +181,7 @@ def test_loss_weights_scale_the_gradient():
   batch = batch.replace(obs=jax.random.normal(jax.random.PRNGKey(2), batch.obs.shape))
   ones = jp.ones((8,))
 
-  hp = numbers.of(cfg)
+  hp = lanes.of(cfg)
   g1, _ = jax.grad(net.loss, has_aux=True)(state.params, batch, 0.0, ones, hp)
   g2, _ = jax.grad(net.loss, has_aux=True)(state.params, batch, 0.0, 2 * ones, hp)
   for x, y in zip(jax.tree.leaves(g1), jax.tree.leaves(g2)):
@@ -199,7 +192,7 @@ def test_loss_weights_scale_the_gradient():
   assert set(m) == {"loss", "policy_loss", "value_loss", "entropy", "approx_kl",
                     "clip_fraction"}
   # Adam ignores a uniform scale, so double the weight of some samples only
-  weights = ppo.top_loss_weights(jp.arange(8) % 3, 0.5)
+  weights = loss_weights(jp.arange(8) % 3, 0.5)
   s_w, _ = update(state, batch, 0.0, weights)
   assert not _leaves_equal(s_w.params, s_ones.params)
   s_zero, _ = update(state, batch, 0.0, jp.zeros((8,)))
@@ -214,7 +207,7 @@ def test_update_vmaps_over_seeds():
   def step(state, key, std):
     batch = _rollout(net, state.params, key, jp.ones((3,)), std,
                      lambda a: -jp.sum(a**2, axis=-1), n=3)
-    return net.update(state, batch, std, jp.ones(batch.reward.shape), numbers.of(cfg))
+    return net.update(state, batch, std, jp.ones(batch.reward.shape), lanes.of(cfg))
 
   std = ppo.gaussian_std(jp.int32(300_000), cfg)
   new, metrics = jax.jit(jax.vmap(step, in_axes=(0, 0, None)))(

@@ -290,9 +290,9 @@ def test_the_physics_settings_are_the_projects_contacts():
   """``--physics mujoco2`` / ``mujoco200`` apply ``envs.contacts.apply_contacts``, loaded from
   its file (the reference venv has no jax); ``as-is`` and ``mujoco3`` leave the model."""
   import mujoco
-  from envs import ant, contacts, tasks
+  from envs import ant, contacts, maze
   from reference import physics
-  xml = ant.ant_maze_xml(tasks.TASKS["Push"].layout(8.0), optimised=False)
+  xml = ant.ant_maze_xml(maze.MAZES["Push"].layout(8.0), optimised=False)
   assert {"as-is", "mujoco2", "mujoco200", "mujoco3"} <= set(physics.names())
   assert physics.hook("as-is") is None and physics.hook("mujoco3") is None
   for name in ("mujoco2", "mujoco200"):

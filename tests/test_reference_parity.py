@@ -38,10 +38,10 @@ import envs
 import reference
 from reference import fixtures
 from nonmono_jax.core import agent as agent_lib
-from nonmono_jax.core import hierarchy, low as low_lib, middle as middle_lib, numbers, ppo
+from nonmono_jax.core import hierarchy, low as low_lib, middle as middle_lib, lanes, ppo
 from nonmono_jax.core import modes as modes_lib
 from nonmono_jax.core import relabel, td3
-from nonmono_jax.core import top as top_lib
+from nonmono_jax.core.modes import top as top_lib
 from nonmono_jax.host import methods
 from tests.tests_support import ROOT
 
@@ -63,7 +63,7 @@ def fx():
 
 
 def ant_config(overrides=None):
-  return methods.make_config("ours", "AntPush", overrides)
+  return methods.build_config("paper", "ours", "AntPush", overrides)[0]
 
 
 # ----- weights: the code's nn.Linear layers as flax params -------------------------------------
@@ -220,9 +220,9 @@ def _td3(level, config):
   """Ours' TD3 of a level as the agent builds it (the Middle's actor on s alone, its critic on
   (s, g); the Low's on (s, g)), at the code's weights and fresh Adam states."""
   if level == "low":
-    learner = low_lib.make_low(30, 8, 30.0, config.low, done_goal="current").td3
+    learner = low_lib.make_low(30, 8, 30.0, config).td3
   else:
-    low = low_lib.make_low(30, 8, 30.0, config.low)
+    low = low_lib.make_low(30, 8, 30.0, config)
     learner = middle_lib.make_middle(30, 8, TARGET, config, low.td3.act).td3
   state = learner.init(jax.random.PRNGKey(0))  # Adam's moments are zeros, as torch's
   params = td3.TD3Params(
@@ -279,7 +279,7 @@ def test_td3_updates_follow_the_codes_step_updates(fx, level):
       pytest.approx(pp[4] * pp[5]), pytest.approx(pp[6]))
   assert c.target_smoothing == (level == "low") and c.policy_delay == 1
   learner, state = _td3(level, config)
-  update, shapes = _with_noise(learner, numbers.of(c))
+  update, shapes = _with_noise(learner, lanes.of(c))
   for k in range(fixtures.TD3_UPDATES):
     z = jp.asarray(fx[f"{level}/{k}/noise"].astype(np.float32))
     state, m = update(state, _td3_batch(fx, level, k), z)
@@ -310,10 +310,10 @@ def test_low_target_noise_is_one_draw_per_batch_in_the_code(fx):
   presets take the code's (``low.target_noise="batch"``): with the same draw both compute the
   same y, and the default asks for (100, 8) numbers, not 8."""
   assert ant_config().low.target_noise == "batch"
-  assert methods.make_config("ours", "PointPush").low.target_noise == "sample"
+  assert methods.build_config("paper", "ours", "PointPush")[0].low.target_noise == "sample"
   config = ant_config({"low.target_noise": "sample"})
   learner, state = _td3("low", config)
-  update, shapes = _with_noise(learner, numbers.of(config.low))
+  update, shapes = _with_noise(learner, lanes.of(config.low))
   z = jp.asarray(fx["low/0/noise"].astype(np.float32))
   _, m = update(state, _td3_batch(fx, "low", 0), z)
   assert shapes == [(100, 8)]
@@ -322,11 +322,11 @@ def test_low_target_noise_is_one_draw_per_batch_in_the_code(fx):
   key = jax.random.PRNGKey(3)
   batch = _td3_batch(fx, "low", 0)
   per_sample = learner.critic_loss(state.params.critic, state.params, batch, key,
-                                   numbers.of(config.low))[1]["target_q"]
+                                   lanes.of(config.low))[1]["target_q"]
   batch_config = ant_config()
   batch_learner, _ = _td3("low", batch_config)
   per_batch = batch_learner.critic_loss(state.params.critic, state.params, batch, key,
-                                        numbers.of(batch_config.low))[1]["target_q"]
+                                        lanes.of(batch_config.low))[1]["target_q"]
   assert float(per_sample) != float(per_batch)
 
 
@@ -340,7 +340,7 @@ def _correction(fx, i, ties):
   """Ours' relabelling of case i (``Middle.relabelled``'s call) under the Low's target actor,
   with the code's standard normals for the random candidates: (candidates, their scores, the
   chosen goal, its index in ours' order)."""
-  low = low_lib.make_low(30, 8, 30.0, ant_config().low)
+  low = low_lib.make_low(30, 8, 30.0, ant_config())
   layers = fixtures.network("low_target_actor")[0]
   if i == N_CORRECTION - 1:
     layers = [layers[0], layers[1], (np.zeros_like(layers[2][0]), layers[2][1])]
@@ -379,7 +379,7 @@ def test_correction_ties_go_to_the_original_goal_by_default(fx):
   original goal (HIRO's candidate order), the code a random candidate (its order); the Ant
   presets take the code's (``relabel_ties="random"``). Without ties both rules agree."""
   assert ant_config().relabel_ties == "random"
-  assert methods.make_config("ours", "PointPush").relabel_ties == "original"
+  assert methods.build_config("paper", "ours", "PointPush")[0].relabel_ties == "original"
   tie = N_CORRECTION - 1
   _, scores, chosen, index = _correction(fx, tie, "original")
   assert np.all(scores == scores[0]) and index == 0
@@ -410,19 +410,19 @@ def test_middle_ppo_updates_follow_the_codes_train(fx):
   reward R_M = 0.1 x the segment's sum where the code stores the sum: the returns are
   normalised, so only the normaliser's 1e-7 sees the scale."""
   config = ant_config()
-  explorer = middle_lib.make_middle(30, 8, TARGET, config, None).explorer
-  state = _ppo_state(explorer.ppo, "ppo")
-  hp = numbers.of(config.middle_ppo)
-  assert float(explorer.std(0)) == pytest.approx(float(fx["ppo/0/std"]))
-  assert float(explorer.std(250_000)) == pytest.approx(float(fx["ppo/1/std"]))
-  update = jax.jit(explorer.ppo.update)
+  middle_ppo = middle_lib.make_middle(30, 8, TARGET, config, None).ppo
+  state = _ppo_state(middle_ppo.learner, "ppo")
+  hp = lanes.of(config.middle_ppo)
+  assert float(middle_ppo.std(0)) == pytest.approx(float(fx["ppo/0/std"]))
+  assert float(middle_ppo.std(250_000)) == pytest.approx(float(fx["ppo/1/std"]))
+  update = jax.jit(middle_ppo.learner.update)
   for k in range(2):
     rollout = ppo.Rollout(
         obs=fx[f"ppo/{k}/states"], action=fx[f"ppo/{k}/actions"].reshape(3, 3),
         log_prob=fx[f"ppo/{k}/logprobs"].reshape(3),
         reward=np.float32(hierarchy.MIDDLE_REWARD_SCALE) * fx[f"ppo/{k}/rewards"],
         done=fx[f"ppo/{k}/terminals"])
-    logp = explorer.ppo.log_prob(state.params, rollout.obs, rollout.action,
+    logp = middle_ppo.learner.log_prob(state.params, rollout.obs, rollout.action,
                                  fx[f"ppo/{k}/std"])
     # the code's log pi_old of its samples: at the start weights to 1e-5; after the first
     # update ours' weights are the code's to ~1e-5, a sample 2.5 std out moves by 4e-5
@@ -437,14 +437,14 @@ def test_middle_ppo_updates_follow_the_codes_train(fx):
 
 def _top(weighting):
   config = ant_config({"top.ppo.value_weighting": weighting})
-  return top_lib.make_top(30, TARGET, config.top, True), numbers.of(config).top
+  return top_lib.make_top(30, TARGET, config), lanes.of(config).top
 
 
 def _top_rollout(fx, k, alpha):
   """The code's Top rollout k in ours' terms: modes in ours' order, the rewards formed by
   ours' reward modification with ``alpha`` (ours' mode order) from the raw R_m."""
   modes = PERMUTE[fx[f"top/{k}/actions"].astype(int)]
-  reward = hierarchy.modified_reward(jp.asarray(fx[f"top/{k}/raw_rewards"]), jp.asarray(alpha),
+  reward = top_lib.modified_reward(jp.asarray(fx[f"top/{k}/raw_rewards"]), jp.asarray(alpha),
                                      jp.asarray(modes))
   return ppo.Rollout(obs=fx[f"top/{k}/states"], action=jp.asarray(modes, jp.int32),
                      log_prob=fx[f"top/{k}/logprobs"], reward=reward,
@@ -524,7 +524,7 @@ def test_goal_transition_low_reward_and_task_scores_follow_the_codes(fx, sequenc
   the state before the step (``dense_reward``, ``success_judge``: one state exactly 5 away)."""
   config = ant_config()
   assert config.low_done_goal == "current" and config.scored_state == "current"
-  low = low_lib.make_low(30, 8, 30.0, config.low, done_goal=config.low_done_goal)
+  low = low_lib.make_low(30, 8, 30.0, config)
   task = envs.base.MazeTask()
   task.target, task.success_radius = TARGET, 5.0
   states, decisions = fx[f"goals/{sequence}/states"], fx[f"goals/{sequence}/decisions"]
@@ -569,7 +569,7 @@ def _our_accounting(fx, modes_ran):
   start, steps = int(fx["switch/start"]), len(fx["switch/reward_h"])
   config = ant_config({"warmup_steps": start, "top.starting_steps": 0,
                        "top.alpha": (0.0, 0.5, 1.0), "top.ppo.hidden": (8,)})
-  hp = numbers.of(config)
+  hp = lanes.of(config)
   chooser = modes_lib.make_chooser(config, 30, TARGET, None)
   keys = agent_lib.InitKeys.split(jax.random.PRNGKey(0))
   state, mode = chooser.init(keys, jp.zeros((1, 30)), None)
@@ -646,15 +646,15 @@ def test_update_schedule_after_warm_up(fx):
   start, code = int(fx["switch/start"]), fx["switch/schedule"]
   steps = start + 410  # past the Top's first update, at warm-up + 400
   small = {"hidden": (8,), "batch_size": 4, "buffer_size": 1000}
-  config = methods.make_config("ours", "PointPush", {
+  config = methods.build_config("paper", "ours", "PointPush", {
       "warmup_steps": start, "top.starting_steps": 0, "eval_every": 100_000,
       "eval_episodes": 1, **{f"low.{k}": v for k, v in small.items()},
       **{f"middle.{k}": v for k, v in small.items()}, "middle_ppo.hidden": (8,),
-      "top.ppo.hidden": (8,)})
+      "top.ppo.hidden": (8,)})[0]
   assert (config.c, config.middle_ppo_every, config.top.horizon, config.top.train_every) == (
       10, 30, 50, 400)
   agent = agent_lib.make_agent(envs.make("PointPush", episode_length=100), config)
-  step = jax.jit(functools.partial(agent.step, hp=numbers.of(config)))
+  step = jax.jit(functools.partial(agent.step, hp=lanes.of(config)))
   state = agent.init(jax.random.PRNGKey(0))
   ours = []
   for t in range(steps):

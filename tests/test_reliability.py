@@ -15,7 +15,7 @@ import pytest
 
 from experiments import cli
 from nonmono_jax.core import validation
-from nonmono_jax.host import io, run
+from nonmono_jax.host import folder, rows as rows_lib, run
 from tests_support import CACHE_DIR, ROOT, TINY_OVERRIDES, TINY_RUN, TINY_SIZE
 
 
@@ -226,9 +226,9 @@ def test_bad_out_paths_are_one_line(tmp_path, capsys):
 def test_a_wrong_type_in_config_json_is_named(reference, tmp_path, capsys, edit, message):
   out = _copy(reference, tmp_path)
   path = os.path.join(out, "config.json")
-  payload = io.read_json(path)
+  payload = folder.read_json(path)
   edit(payload)
-  io.write_json(path, payload)
+  folder.write_json(path, payload)
   code, err, _ = _main(capsys, ["--resume", out])
   assert code == 2 and len(err) == 1 and message in err[0], err
 
@@ -269,7 +269,7 @@ def test_a_leftover_orbax_temporary_folder_is_not_kept_as_a_checkpoint(reference
 def test_a_malformed_config_json_is_one_line(reference, tmp_path, capsys, edit, message):
   out = _copy(reference, tmp_path)
   path = os.path.join(out, "config.json")
-  io.write_json(path, edit(io.read_json(path)))
+  folder.write_json(path, edit(folder.read_json(path)))
   code, err, _ = _main(capsys, ["--resume", out])
   assert code == 2 and len(err) == 1 and message in err[0], err
   from experiments import render
@@ -358,7 +358,7 @@ def test_another_runs_checkpoint_is_one_line_to_the_end_of_the_process(reference
 
 def test_a_full_disk_is_one_line_and_keeps_the_last_checkpoint(reference, tmp_path, monkeypatch,
                                                                 capsys):
-  append, calls = io.MetricsFile.append, []
+  append, calls = rows_lib.MetricsFile.append, []
 
   def full(self, rows):  # the disk fills up in the third chunk
     calls.append(1)
@@ -366,7 +366,7 @@ def test_a_full_disk_is_one_line_and_keeps_the_last_checkpoint(reference, tmp_pa
       raise OSError(errno.ENOSPC, "No space left on device", self.path)
     append(self, rows)
 
-  monkeypatch.setattr(io.MetricsFile, "append", full)
+  monkeypatch.setattr(rows_lib.MetricsFile, "append", full)
   out = str(tmp_path / "run")
   code, err, _ = _main(capsys, TINY_RUN + ["--method", "ours", "--out", out])
   assert code == 1 and len(err) == 1, err
@@ -427,7 +427,7 @@ def test_a_too_short_time_limit_still_advances_a_chunk_per_process(reference, tm
   for _ in range(4):
     code, _, stdout = _main(capsys, argv if not steps else
                             ["--resume", out, "--no-progress", "--time-limit", "1e-6"])
-    steps.append(max(int(r["env_step"]) for r in io.MetricsFile(
+    steps.append(max(int(r["env_step"]) for r in rows_lib.MetricsFile(
         os.path.join(out, "metrics.csv")).read()))
     assert code == (3 if len(steps) < 4 else 0)
   assert steps == [200, 400, 600, 800]
@@ -441,15 +441,15 @@ def test_metrics_use_one_line_ending(reference):
 
 
 def test_a_failing_first_chunk_says_there_is_no_checkpoint(tmp_path, monkeypatch, capsys):
-  monkeypatch.setattr(io, "first_non_finite", lambda states, metrics: (0, "low"))
+  monkeypatch.setattr(run, "first_non_finite", lambda summary: (0, "low"))
   code, err, _ = _main(capsys, TINY_RUN + ["--method", "ours", "--out", str(tmp_path / "r")])
   assert code == 1 and len(err) == 1 and "no checkpoint was saved before it" in err[0], err
 
 
 def test_a_swallowed_ctrl_c_still_stops_the_run_after_the_chunk(tmp_path, monkeypatch, capsys):
-  check, calls = io.first_non_finite, []
+  check, calls = run.first_non_finite, []
 
-  def swallowing(states, metrics):  # Ctrl-C inside a callback that ignores exceptions
+  def swallowing(summary):  # Ctrl-C inside a callback that ignores exceptions
     calls.append(1)
     if len(calls) == 2:
       try:
@@ -457,9 +457,9 @@ def test_a_swallowed_ctrl_c_still_stops_the_run_after_the_chunk(tmp_path, monkey
         time.sleep(1)
       except KeyboardInterrupt:
         pass
-    return check(states, metrics)
+    return check(summary)
 
-  monkeypatch.setattr(io, "first_non_finite", swallowing)
+  monkeypatch.setattr(run, "first_non_finite", swallowing)
   out = str(tmp_path / "run")
   code, err, _ = _main(capsys, TINY_RUN + ["--method", "ours", "--out", out])
   assert code == 1 and len(err) == 1 and err[0].startswith("error: interrupted"), err

@@ -11,14 +11,15 @@ import pytest
 from experiments import cli
 from nonmono_jax.core import config as config_lib
 from nonmono_jax.core import td3
-from nonmono_jax.host import io, methods, plan as plan_lib, run, sinks
+from nonmono_jax.host import folder, methods, plan as plan_lib, provenance, rows as rows_lib
+from nonmono_jax.host import run, sinks
 from tests_support import ROOT, TINY_OVERRIDES, TINY_RUN, TINY_SIZE
 
 
 # --- one way to override ------------------------------------------------------------------------
 
 def test_a_dotted_path_changes_that_field_and_keeps_its_neighbours():
-  base = methods.make_config("ours", "AntFall")
+  base = methods.build_config("paper", "ours", "AntFall")[0]
   config = config_lib.override(base, {"top.horizon": 100, "middle.target_smoothing": True})
   assert config.top.horizon == 100 and config.middle.target_smoothing
   assert config.top.alpha == base.top.alpha == (-0.2, -0.2, 0.7)  # not wiped by "top.*"
@@ -32,7 +33,7 @@ def test_a_dotted_path_changes_that_field_and_keeps_its_neighbours():
   config = config_lib.override(base, {"low": small, "low.batch_size": 2})
   assert config.low.hidden == (8,) and config.low.batch_size == 2
   assert config_lib.merge({"low.hidden": (64,)}, {"low": small}) == {"low": small}
-  assert methods.make_config("hiro", "PointMaze", {"low": small}).low == small
+  assert methods.build_config("paper", "hiro", "PointMaze", {"low": small})[0].low == small
 
 
 @pytest.mark.parametrize("overrides,message", [
@@ -44,7 +45,7 @@ def test_a_dotted_path_changes_that_field_and_keeps_its_neighbours():
 ])
 def test_a_bad_override_names_the_full_dotted_field(overrides, message):
   with pytest.raises(ValueError) as e:
-    methods.make_config("ours", "PointMaze", overrides)
+    methods.build_config("paper", "ours", "PointMaze", overrides)[0]
   assert message in str(e.value)
 
 
@@ -52,8 +53,8 @@ def test_config_json_inverts_for_every_method_task_and_preset():
   for preset in methods.PRESETS:
     for task in methods.TASKS:
       for method in methods.METHODS:
-        config, _ = methods.make_preset(preset, method, task)
-        saved = json.loads(json.dumps(io.to_jsonable(config)))
+        config, _ = methods.build_config(preset, method, task)
+        saved = json.loads(json.dumps(folder.to_jsonable(config)))
         assert config_lib.config_from_dict(saved, config_lib.AgentConfig()) == config
         assert not config_lib.missing_fields(saved, config)
 
@@ -114,8 +115,8 @@ def old_run(tmp_path_factory):
 def test_metrics_csv_shows_the_low_and_each_evaluation_the_run_makes(old_run):
   """The Low's columns in every row; S_E per evaluation kind where the run evaluates it (the
   point preset: only the held goals, which is its S_E)."""
-  rows = io.MetricsFile(os.path.join(old_run[0], "metrics.csv")).read()
-  assert rows and all(r[c] != "" for r in rows for c in io.LOW_COLUMNS)
+  rows = rows_lib.MetricsFile(os.path.join(old_run[0], "metrics.csv")).read()
+  assert rows and all(r[c] != "" for r in rows for c in rows_lib.LOW_COLUMNS)
   assert all(-100 < float(r["low_reward"]) < 0 and 0 <= float(r["low_subgoal_reached"]) <= 1
              for r in rows)
   assert all(abs(float(r["low_subgoal_progress"])) < 20 for r in rows)
@@ -134,7 +135,7 @@ def test_every_metric_reaches_the_json_lines_file(old_run):
   names = set(results[0].metrics)
   assert {"low/critic_loss", "count/TD3", "reward"} <= names
   for record in records:
-    assert names <= set(record) and set(io.COLUMNS) <= set(record)
+    assert names <= set(record) and set(rows_lib.COLUMNS) <= set(record)
   assert [r["seed"] for r in records] == [0, 1, 0, 1]
   assert records[2]["count/TD3"] == results[1].metrics["count/TD3"][0]
 
@@ -187,23 +188,23 @@ def test_an_old_run_folder_resumes_plots_and_renders_with_a_warning(old_run, pre
   shutil.copytree(old_run[0], out)
   # The folder as an older version wrote it: overrides nested, a field the code added since.
   path = os.path.join(out, "config.json")
-  payload = io.read_json(path)
+  payload = folder.read_json(path)
   payload["overrides"] = {"top": {"starting_steps": 100}, **{
       k: v for k, v in payload["overrides"].items() if k != "top.starting_steps"}}
   del payload["configs"]["ours"]["eval_target_networks"]
   # ... and a metrics.csv without the columns the code added since (Middle decisions, counts
   # after the starting mode): its rows keep its columns
-  old_columns = [c for c in io.COLUMNS if not c.startswith(("decisions_", "cum_decisions_",
+  old_columns = [c for c in rows_lib.COLUMNS if not c.startswith(("decisions_", "cum_decisions_",
                                                              "cum_steps_after_start_"))]
   metrics = os.path.join(out, "metrics.csv")
-  old_rows = io.MetricsFile(metrics).read()
+  old_rows = rows_lib.MetricsFile(metrics).read()
   with open(metrics, "w", newline="") as f:
     w = csv.DictWriter(f, old_columns, lineterminator="\n", extrasaction="ignore")
     w.writeheader()
     w.writerows(old_rows)
-  assert payload["host"] == plan_lib.host()  # the machine type its rows reproduce on
+  assert payload["host"] == provenance.host()  # the machine type its rows reproduce on
   payload["host"]["cpu"] = "another CPU"
-  io.write_json(path, payload)
+  folder.write_json(path, payload)
   plan = run.load_run(out)
   assert any("started on another machine type (cpu 'another CPU'" in w for w in plan.warnings)
   assert plan.configs["ours"].top.s_o_start == 0.9  # config.json's, not today's 0.8
@@ -214,7 +215,7 @@ def test_an_old_run_folder_resumes_plots_and_renders_with_a_warning(old_run, pre
   got = capsys.readouterr()
   assert "ours: resumed from step 400" in got.out
   assert "warning:" in got.err and "top.s_o_start 0.9 (today 0.8)" in got.err
-  rows = io.MetricsFile(os.path.join(out, "metrics.csv")).read()
+  rows = rows_lib.MetricsFile(os.path.join(out, "metrics.csv")).read()
   assert [int(r["env_step"]) for r in rows] == [200, 200, 400, 400, 600, 600, 800, 800]
   assert list(rows[-1]) == old_columns  # the resumed rows in the file's own columns
   with open(os.path.join(out, "metrics.jsonl")) as f:
@@ -240,11 +241,11 @@ def test_a_run_folder_of_2026_12_02_loads_resumes_plots_and_renders(tmp_path, ca
   out = str(tmp_path / "run")
   shutil.copytree(FOLDER_2026_12_02, out)
   committed = {(r["method"], r["seed"], r["env_step"]): r
-               for r in io.MetricsFile(os.path.join(out, "metrics.csv")).read()}
+               for r in rows_lib.MetricsFile(os.path.join(out, "metrics.csv")).read()}
   assert run.load_run(out).configs["ours"].top.starting_steps == 100
   assert cli.main("PointMaze", ["--resume", out, "--no-progress"]) == 0
   assert "resumed from step 600" in capsys.readouterr().out
-  rows = io.MetricsFile(os.path.join(out, "metrics.csv")).read()
+  rows = rows_lib.MetricsFile(os.path.join(out, "metrics.csv")).read()
   keys = {(r["method"], r["seed"], r["env_step"]): r for r in rows}
   assert len(rows) == len(keys) == len(committed) == 2 * 2 * 4  # methods x seeds x chunks
   assert set(keys) == set(committed)
@@ -267,9 +268,9 @@ def test_a_json_lines_file_drops_what_follows_the_checkpoint_on_resume(tmp_path)
 def test_a_config_json_that_today_cannot_rebuild_still_loads(old_run, tmp_path):
   out = str(tmp_path / "run")
   os.makedirs(out)
-  payload = io.read_json(os.path.join(old_run[0], "config.json"))
+  payload = folder.read_json(os.path.join(old_run[0], "config.json"))
   payload["overrides"]["a_field_since_removed"] = 1
-  io.write_json(os.path.join(out, "config.json"), payload)
+  folder.write_json(os.path.join(out, "config.json"), payload)
   plan = plan_lib.load_run(out)
   assert plan.configs["ours"] == run.load_run(old_run[0]).configs["ours"]
   assert any("cannot be rebuilt from today's presets" in w for w in plan.warnings)
@@ -283,11 +284,11 @@ def test_the_ant_physics_is_recorded_and_an_old_ant_run_keeps_mjx(tmp_path):
   from nonmono_jax.host import programs as programs_lib
   assert plan.env().physics == "c"
   assert programs_lib.Programs(plan).trainer("hiro").agent.env.physics == "c"
-  payload = plan_lib.to_json(plan)
+  payload = folder.to_json(plan)
   assert payload["physics"] == "c"
   assert plan_lib.from_json(payload, plan.out).physics == "c"
   mjx = plan_lib.new_run("AntPush", ["hiro"], preset="quick", physics="mjx")
-  assert plan_lib.from_json(plan_lib.to_json(mjx), plan.out).physics == "mjx"
+  assert plan_lib.from_json(folder.to_json(mjx), plan.out).physics == "mjx"
   del payload["physics"]  # a run folder from before the choice ran on MJX
   assert plan_lib.from_json(payload, plan.out).physics == "mjx"
   payload["physics"] = "warp"
@@ -308,7 +309,7 @@ def test_the_ant_contacts_are_recorded_and_an_old_ant_run_keeps_mujoco3(tmp_path
   assert plan.contacts == "mujoco200" and plan.env().config.contacts == "mujoco200"
   two = plan_lib.new_run("AntFall", ["hiro"], preset="quick", contacts="mujoco2")
   assert two.env().mj_model.geom_margin.max() == 0.005
-  payload = plan_lib.to_json(two)
+  payload = folder.to_json(two)
   assert payload["contacts"] == "mujoco2"
   assert plan_lib.from_json(payload, plan.out).contacts == "mujoco2"
   del payload["contacts"]  # a run folder from before the choice
@@ -338,7 +339,7 @@ def test_the_task_registry_names_each_task_once():
     module = importlib.import_module(f"experiments.{task.lower()}")
     assert methods.task_of_module(module.__name__) == task
     for name in methods.PRESETS:
-      methods.make_preset(name, "ours", task)
+      methods.build_config(name, "ours", task)
   assert methods.TASKS["PointPush"].random_success == 0.004
   with pytest.raises(ValueError, match="no task named 'antswim'"):
     methods.task_of_module("experiments.antswim")
@@ -353,7 +354,7 @@ def test_fields_added_since_a_run_keep_the_behaviour_it_ran_with():
   assert (config.eval_goal, config.eval_extra, config.middle_td3_first_state,
           config.warmup_goal) == ("held", (), "last", "uniform")
   assert config.episode_start == "last"  # what it saved stays
-  today = methods.make_config("ours", "AntPush")
+  today = methods.build_config("paper", "ours", "AntPush")[0]
   assert (today.eval_goal, today.middle_td3_first_state) == ("requery", "reset")
   assert any("has no " in w and "middle_td3_first_state" in w
              and "the behaviour before they were added" in w for w in plan.warnings)
@@ -373,7 +374,7 @@ def test_a_checkpoint_without_the_later_state_fields_is_filled_as_its_code_ran()
   import envs
   from nonmono_jax.core import agent as agent_lib
 
-  config = methods.make_config("ours", "PointMaze", {**TINY_OVERRIDES})
+  config = methods.build_config("paper", "ours", "PointMaze", {**TINY_OVERRIDES})[0]
   agent = agent_lib.make_agent(envs.make("PointMaze", episode_length=100), config)
   state = jax.vmap(agent.init)(jax.random.split(jax.random.PRNGKey(0), 2))
   n = len(jax.tree.leaves(state))

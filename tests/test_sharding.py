@@ -24,9 +24,9 @@ SCRIPT = textwrap.dedent("""
     run.use_cpu_devices(2)  # again, once JAX runs: the same count is fine
     env = envs.make("PointMaze", episode_length=20)
     small = td3.TD3Config(hidden=(16, 16), batch_size=8, buffer_size=200)
-    config = methods.make_config("hiro", "PointMaze", {
+    config = methods.build_config("paper", "hiro", "PointMaze", {
         "c": 5, "warmup_steps": 20, "eval_every": 20, "eval_episodes": 2, "low": small,
-        "middle": small})
+        "middle": small})[0]
     out = {}
     for name, devices in (("two", jax.devices()), ("one", jax.devices()[:1])):
       trainer = train.make_trainer(env, config, num_seeds=4, chunk_steps=20, devices=devices)

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from experiments import claims, sidebyside
-from nonmono_jax.host import io
+from nonmono_jax.host import rows as rows_lib
 
 WARMUP = 100_000
 
@@ -39,7 +39,7 @@ def _ours(folder, per_seed, low=-3.0, until=1_000_000, method="ours"):
   with open(os.path.join(folder, "config.json"), "w") as f:
     json.dump({"configs": {method: {"warmup_steps": WARMUP, "num_envs": 1}}}, f)
   with open(os.path.join(folder, "metrics.csv"), "w", newline="") as f:
-    w = csv.DictWriter(f, io.COLUMNS, extrasaction="ignore")
+    w = csv.DictWriter(f, rows_lib.COLUMNS, extrasaction="ignore")
     w.writeheader()
     for env_step in range(10_000, WARMUP + until + 1, 10_000):
       x = env_step - WARMUP

@@ -10,12 +10,12 @@ import numpy as np
 import pytest
 
 from experiments import cli
-from nonmono_jax.host import io, run, sinks
+from nonmono_jax.host import rows as rows_lib, run, sinks
 from tests_support import TINY_OVERRIDES, TINY_RUN, TINY_SIZE
 
 
 def _result(method, env_step, s_e):
-  rows = [{**{c: "" for c in io.COLUMNS}, "task": "PointMaze", "method": method, "seed": k,
+  rows = [{**{c: "" for c in rows_lib.COLUMNS}, "task": "PointMaze", "method": method, "seed": k,
            "env_step": env_step, "eval_success": v, "train_reward": -1.0}
           for k, v in enumerate(s_e)]
   return types.SimpleNamespace(method=method, env_step=env_step, step=env_step, rows=rows,

@@ -1,11 +1,12 @@
-"""The Ref methods' informed switch at Middle decisions (``switch.py``), as the paper's code."""
+"""The Ref methods' informed switch at Middle decisions (``modes/trigger.py``), as the paper's code."""
 
 import jax
 import jax.numpy as jp
 import numpy as np
 import pytest
 
-from nonmono_jax.core import hierarchy, homeostasis, switch as switch_lib
+from nonmono_jax.core import hierarchy, homeostasis
+from nonmono_jax.core.modes import trigger as switch_lib
 
 C = 10
 EXPLORE, EXPLOIT = hierarchy.RANDOM, hierarchy.TD3

@@ -8,7 +8,7 @@ import jax.numpy as jp
 import numpy as np
 import pytest
 
-from nonmono_jax.core import buffers, networks, numbers, td3
+from nonmono_jax.core import buffers, networks, lanes, td3
 
 SMALL = td3.TD3Config(hidden=(32, 32), batch_size=64)
 
@@ -41,7 +41,7 @@ def test_critic_loss_matches_manual_target():
     p = state.params
     batch = _batch(jax.random.PRNGKey(1))
     key = jax.random.PRNGKey(2)
-    loss, _ = agent.critic_loss(p.critic, p, batch, key, numbers.of(cfg))
+    loss, _ = agent.critic_loss(p.critic, p, batch, key, lanes.of(cfg))
     a_next = agent.act(td3.TD3Params(p.target_actor, p.critic, p.target_actor, p.target_critic),
                        batch.next_obs, batch.next_context)
     if smoothing:
@@ -53,7 +53,7 @@ def test_critic_loss_matches_manual_target():
     manual = jp.mean((q[0] - y) ** 2) + jp.mean((q[1] - y) ** 2)
     np.testing.assert_allclose(loss, manual, rtol=1e-5)
     # Without smoothing the target does not depend on the key.
-    loss2, _ = agent.critic_loss(p.critic, p, batch, jax.random.PRNGKey(3), numbers.of(cfg))
+    loss2, _ = agent.critic_loss(p.critic, p, batch, jax.random.PRNGKey(3), lanes.of(cfg))
     assert (loss2 == loss) == (not smoothing)
 
 
@@ -61,7 +61,7 @@ def test_delayed_actor_and_polyak_targets():
   agent = td3.make_td3(3, 2, 2, 1.0, SMALL)
   s0 = agent.init(jax.random.PRNGKey(0))
   batch = _batch(jax.random.PRNGKey(1))
-  hp = numbers.of(SMALL)
+  hp = lanes.of(SMALL)
   s1, m = agent.update(s0, batch, jax.random.PRNGKey(2), False, hp)
   same = jax.tree.map(lambda a, b: bool(jp.all(a == b)), s0.params.actor, s1.params.actor)
   assert all(jax.tree.leaves(same)) and float(m["actor_loss"]) == 0.0
@@ -84,7 +84,7 @@ def test_actor_gate_stays_a_branch_under_vmap():
   states = jax.vmap(agent.init)(jax.random.split(jax.random.PRNGKey(0), 4))
   batch = jax.vmap(_batch)(jax.random.split(jax.random.PRNGKey(1), 4))
   keys = jax.random.split(jax.random.PRNGKey(2), 4)
-  upd = jax.vmap(functools.partial(agent.update, hp=numbers.of(SMALL)), in_axes=(0, 0, 0, None))
+  upd = jax.vmap(functools.partial(agent.update, hp=lanes.of(SMALL)), in_axes=(0, 0, 0, None))
   jaxpr = str(jax.make_jaxpr(upd)(states, batch, keys, jp.array(True)))
   assert "cond[" in jaxpr
   out, _ = jax.jit(upd)(states, batch, keys, jp.array(True))
@@ -108,7 +108,7 @@ def test_td3_solves_a_contextual_bandit():
   def body(state, i):
     k = jax.random.PRNGKey(i)
     state, m = agent.update(state, batch(k), jax.random.fold_in(k, 1), i % 2 == 0,
-                            numbers.of(cfg))
+                            lanes.of(cfg))
     return state, m["critic_loss"]
 
   state, losses = jax.jit(lambda s: jax.lax.scan(body, s, jp.arange(1500)))(

@@ -4,8 +4,9 @@ import jax
 import jax.numpy as jp
 import numpy as np
 
-from nonmono_jax.core import hierarchy, numbers, ppo
-from nonmono_jax.core.top import Horizon, make_top
+from nonmono_jax.core import hierarchy, lanes, ppo
+from nonmono_jax.core.modes import top as top_lib
+from nonmono_jax.core.modes.top import Horizon, make_top
 from nonmono_jax.host import methods
 
 OBS = 4
@@ -15,8 +16,9 @@ _ppo = ppo.PPOConfig(hidden=(8,), discrete=True)
 
 def _top(method):
   """The Top of ``method`` and its numbers (``hp``)."""
-  config = methods.make_config(method, "AntPush", {"top.ppo": _ppo}).top
-  return make_top(OBS, TARGET, config), numbers.of(config)
+  config = methods.build_config("paper", method, "AntPush", {
+      "top.ppo": _ppo, "returns_cross_episodes": False})[0]
+  return make_top(OBS, TARGET, config), lanes.of(config).top
 
 
 def _horizon(mode, reward=-100.0, done_count=30.0, count=50.0):
@@ -87,3 +89,33 @@ def test_loss_modification_weights_td3_down_and_exploration_up():
   same = lambda x, y: all(np.allclose(p, q) for p, q in zip(jax.tree.leaves(x.params),
                                                               jax.tree.leaves(y.params)))
   assert same(a, b) and same(a, c) and not same(a, got)
+
+
+# --- the Top's formulas: hand-worked values ----------------------------------------------------
+
+def test_success_ratio_and_top_done_per_mode():
+  s_o = jp.array([0.6, 0.6, 0.9])  # Ant Fall
+  ratio = top_lib.success_ratio(jp.array(35.0), jp.array(50.0))
+  np.testing.assert_allclose(ratio, 0.7)
+  assert float(top_lib.top_done(ratio, s_o, hierarchy.TD3)) == 1.0
+  assert float(top_lib.top_done(ratio, s_o, hierarchy.RANDOM)) == 0.0
+  assert float(top_lib.success_ratio(jp.array(0.0), jp.array(0.0))) == 0.0
+
+
+def test_reward_modification_penalises_modes_with_larger_alpha():
+  alpha = jp.array([0.0, 0.4, 0.7])  # Ant Push
+  r = jp.array(-100.0)
+  modes = (hierarchy.TD3, hierarchy.PPO, hierarchy.RANDOM)
+  got = [float(top_lib.modified_reward(r, alpha, m)) for m in modes]
+  np.testing.assert_allclose(got, [-100.0, -140.0, -170.0])
+  # Ant Fall's negative alpha makes TD3's reward less negative.
+  fall = jp.array([-0.2, -0.2, 0.7])
+  np.testing.assert_allclose(top_lib.modified_reward(r, fall, hierarchy.TD3), -80.0)
+
+
+def test_loss_weights():
+  modes = jp.array([0, 1, 2, 0])
+  w = top_lib.loss_weights(modes, 0.3)
+  np.testing.assert_allclose(w, [0.7, 1.3, 1.3, 0.7], rtol=1e-6)
+  w = top_lib.loss_weights(modes, jp.array([0.1, 0.2, 0.3, 0.4]), td3_mode=2)
+  np.testing.assert_allclose(w, [1.1, 1.2, 0.7, 1.4], rtol=1e-6)

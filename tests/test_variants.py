@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 import envs
-from nonmono_jax.core import numbers, train
+from nonmono_jax.core import lanes, train
 from nonmono_jax.core.config import AgentConfig
-from nonmono_jax.core.numbers import check_group
-from nonmono_jax.host import methods, run, sinks
+from nonmono_jax.core.lanes import check_group
+from nonmono_jax.host import folder, methods, run, sinks
 from nonmono_jax.host import plan as plan_lib
 from tests.tests_support import TINY_OVERRIDES
 
@@ -20,8 +20,8 @@ STEPS, CHUNK, SEEDS, EPISODE = 800, 400, 2, 100
 
 
 def tiny(method, overrides=None):
-  config = methods.make_config(method, "PointMaze", {**TINY_OVERRIDES, **(overrides or {})})
-  return methods.size_buffers(config, STEPS)
+  return methods.build_config("paper", method, "PointMaze", {**TINY_OVERRIDES, **(overrides or {})},
+                              run={"steps": STEPS})[0]
 
 
 def _run(trainer):
@@ -64,7 +64,7 @@ def test_gates_stay_branches_with_batched_numbers():
   env = envs.make("PointMaze", episode_length=EPISODE)
   group = train.make_group_trainer(env, [tiny("ours"), tiny("ours-no-mods")], SEEDS, CHUNK)
   states = jax.eval_shape(group.init, jax.random.PRNGKey(0))
-  hp = jax.tree.map(np.asarray, numbers.stack([tiny("ours")] * group.num_lanes))
+  hp = jax.tree.map(np.asarray, lanes.stack([tiny("ours")] * group.num_lanes))
   jaxpr = str(jax.make_jaxpr(jax.vmap(group.agent.step, in_axes=(0, None, 0)))(
       states, np.int32(0), hp))
   assert jaxpr.count("cond[") >= 10, jaxpr.count("cond[")
@@ -78,7 +78,7 @@ def test_the_variants_differ_in_what_their_numbers_change(runs):
 
 
 def test_only_configs_with_one_static_key_share_a_program():
-  assert numbers.static_key(tiny("ours", {"top.alpha": (0.1, 0.2, 0.3)})) == numbers.static_key(
+  assert lanes.static_key(tiny("ours", {"top.alpha": (0.1, 0.2, 0.3)})) == lanes.static_key(
       tiny("ours-no-loss-mod"))
   with pytest.raises(ValueError, match="switch"):
     check_group([tiny("ours"), tiny("hiro")])
@@ -154,7 +154,7 @@ def test_a_run_from_before_variants_resumes_its_methods_one_after_another(tmp_pa
   """Its methods may stand at different steps: they keep running alone, as they ran."""
   with run.open_folder(_plan(tmp_path)):
     pass
-  payload = plan_lib.read_config(str(tmp_path))
+  payload = folder.read_config(str(tmp_path))
   del payload["grouped"], payload["variants"]
   assert plan_lib.from_json(payload, str(tmp_path)).groups() == [["ours"], ["ours-no-mods"]]
 
@@ -162,12 +162,12 @@ def test_a_run_from_before_variants_resumes_its_methods_one_after_another(tmp_pa
 def test_traced_numbers_are_declared_once_on_their_fields():
   """``numbers.traced`` on a field is the whole declaration: the paths, the lane's numbers and
   the static key all follow from it."""
-  paths = set(numbers.paths(AgentConfig()))
+  paths = set(lanes.paths(AgentConfig()))
   assert {"top.alpha", "top.reward_mod", "top.loss_mod", "homeostasis.rho", "low.gamma",
           "middle.tau", "top.ppo.clip", "middle_ppo.lr_actor", "middle_goal_noise"} <= paths
   assert not any(p.split(".")[-1] in ("hidden", "batch_size", "horizon", "k_epochs", "c")
                  for p in paths)
-  hp = numbers.of(tiny("ours-no-reward-mod", {"top.alpha": (0.0, 0.5, 0.25)}))
+  hp = lanes.of(tiny("ours-no-reward-mod", {"top.alpha": (0.0, 0.5, 0.25)}))
   assert float(hp.top.reward_mod) == 0.0 and float(hp.top.loss_mod) == 1.0
   np.testing.assert_array_equal(hp.top.alpha, np.float32([0.0, 0.5, 0.25]))
   assert hp.low.gamma.dtype == np.float32 and len(jax.tree.leaves(hp)) == len(paths)

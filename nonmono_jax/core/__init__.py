@@ -1,6 +1,6 @@
 """The jitted core: pure functions over flax.struct state, what runs inside ``jax.jit``.
 
-    config, numbers        the configuration; which of its fields are a lane's traced numbers
+    config, lanes          the configuration; which of its fields are a lane's traced numbers
     agent                  one env step of the whole agent (the paper's Algorithm 1, in phases)
     modes, top, switch,    how g_expl_mode is chosen: HIRO's fixed TD3, the Top PPO (ours),
       homeostasis            Pislar et al.'s informed trigger (Ref:*)

@@ -5,11 +5,11 @@ in the phases of ``step``:
 
     act:      a = clip(pi_L(s, g) + noise) (uniform in warm-up) -> env.step -> s', R, success
               Low buffer <- (s, g, a, r_L, s', g');  g <- g' = s[:3] + g - s'[:3]
-              Top horizon: R_m += R, Done_m += success, Count_m += 1       (modes.py, top.py)
+              Top horizon: R_m += R, Done_m += success, Count_m += 1       (modes/)
     reset:    episode end (every episode_length steps, all envs at once)
     segment end, every c steps (a Middle decision):
               Middle TD3 buffer + Middle PPO rollout <- (s_0, g, 0.1 sum R, s_c, success)
-              the mode switch: g_expl_mode from the chooser (modes.py): fixed TD3 (HIRO), the
+              the mode switch: g_expl_mode from the chooser (modes/): fixed TD3 (HIRO), the
                 Top PPO per Top horizon (ours), the informed trigger (Ref:*)
               next goal from the sub-policy of g_expl_mode (TD3 / PPO / RANDOM)
     updates (after warm-up): Low TD3 every step, Middle TD3 every c, Middle PPO every 30,
@@ -17,8 +17,8 @@ in the phases of ``step``:
     evaluation of Middle TD3 + Low TD3 every 10K steps -> S_E
 
 The numbers a variant may change (the config fields declared ``traced``: alpha, S_O, the Top's
-two switches, rho, the goal noise, the learners' rates; ``numbers.py``) are read from ``hp``,
-the lane's ``Numbers``: ``step(state, t, hp)``, ``hp = numbers.of(config)``. Every gate is a
+two switches, rho, the goal noise, the learners' rates; ``lanes.py``) are read from ``hp``,
+the lane's ``Numbers``: ``step(state, t, hp)``, ``hp = lanes.of(config)``. Every gate is a
 function of the global step ``t``, which is not batched over seeds, so each stays a real
 ``lax.cond`` under ``vmap`` (docs/spec.md, section 6); only per-env data (modes, explore
 periods) is batched. Metrics are ``metrics.Metric``s that declare their chunk reduction.
@@ -27,7 +27,6 @@ periods) is batched. Metrics are ``metrics.Metric``s that declare their chunk re
 from __future__ import annotations
 
 import dataclasses
-from typing import Callable
 
 import jax
 import jax.numpy as jp
@@ -38,10 +37,10 @@ from nonmono_jax.core import buffers, hierarchy, modes, td3
 from nonmono_jax.core import evaluate as evaluate_lib
 from nonmono_jax.core.config import AgentConfig
 from nonmono_jax.core.gates import gated
-from nonmono_jax.core.numbers import Numbers
+from nonmono_jax.core.lanes import Numbers
 from nonmono_jax.core.low import Low, make_low
 from nonmono_jax.core.metrics import Metric, level
-from nonmono_jax.core.middle import Explorer, Middle, NoExplorer, Segment, make_middle
+from nonmono_jax.core.middle import Middle, MiddlePPOState, NoMiddlePPOState, Segment, make_middle
 
 N_MODES = len(hierarchy.MODES)
 
@@ -53,8 +52,8 @@ class SeedState:
   env: MazeState  # (E,)
   low: td3.TD3State
   middle: td3.TD3State
-  middle_ppo: Explorer | NoExplorer  # the Middle PPO and its rollout (E, ...), if any
-  chooser: modes.ChooserState  # Fixed, TopState or TriggerState (modes.py), (E,)
+  middle_ppo: MiddlePPOState | NoMiddlePPOState  # the Middle PPO and its rollout (E, ...)
+  chooser: modes.ChooserState  # the chooser's own (modes/: Fixed, TopState, TriggerState), (E,)
   low_buffer: buffers.ReplayBuffer
   middle_buffer: buffers.ReplayBuffer
   goal: jax.Array  # (E, 3)
@@ -68,7 +67,8 @@ class SeedState:
   eval_distance: jax.Array  # and its mean final distance to the target
   eval_return: jax.Array  # and its mean episode return
   key: jax.Array
-  # Fields added later go last, so that older checkpoints restore by leaf position (io.py).
+  # Fields added later go last, so that older checkpoints restore by leaf position
+  # (host/checkpoints.py).
   segment_start: jax.Array  # (E, obs) the Middle TD3's s_0 of the current segment (middle.py)
   eval_by_kind: jax.Array  # (3,) the latest S_E of each evaluation kind (evaluate.KINDS)
 
@@ -155,23 +155,11 @@ class EnvStep:
   success: jax.Array
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(frozen=True, eq=False)  # identity: its levels hold arrays
 class Agent:
-  """The agent's pure functions: ``init(key) -> SeedState`` and ``step(state, t, hp)``."""
-
-  config: AgentConfig
-  env: MazeEnv
-  low: Low
-  middle: Middle
-  chooser: modes.ModeChooser
-  init: Callable[[jax.Array], SeedState]
-  step: Callable[..., tuple[SeedState, dict]]  # (state, t, hp) -> (state, metrics)
-  evaluate: Callable[..., evaluate_lib.Evaluation]  # (state, t, key) -> Evaluation
-
-
-@dataclasses.dataclass(frozen=True)
-class _Parts:
-  """The levels and schedule that the phases below share (static)."""
+  """The agent (``make_agent`` builds it): its levels, the chooser and the evaluation, and its
+  pure functions ``init(key) -> SeedState``, ``step(state, t, hp) -> (state, metrics)`` and
+  ``evaluate(state, t, key) -> Evaluation``, composed of the phases below."""
 
   config: AgentConfig
   env: MazeEnv
@@ -179,6 +167,15 @@ class _Parts:
   middle: Middle
   chooser: modes.ModeChooser
   evaluator: evaluate_lib.Evaluator
+
+  def init(self, key) -> SeedState:
+    return _init(self, key)
+
+  def step(self, state: SeedState, t, hp: Numbers) -> tuple[SeedState, dict]:
+    return _step(self, state, t, hp)
+
+  def evaluate(self, state: SeedState, t, key) -> evaluate_lib.Evaluation:
+    return _evaluate(self, state, t, key)
 
 
 def _per_env(fn, shared, per_env):
@@ -198,9 +195,9 @@ def _counts(prefix, counted):
   return {f"{prefix}/{name}": Metric.sum(counted[j]) for j, name in enumerate(hierarchy.MODES)}
 
 
-def _new_segments(p: _Parts, state, obs, key, warm, t, noise):
+def _new_segments(p: Agent, state, obs, key, warm, t, noise):
   """The goals of new segments from ``obs`` in each env's mode (random where ``warm``)."""
-  shared = {"td3": state.middle.params, "ppo": p.middle.explorer.params(state.middle_ppo),
+  shared = {"td3": state.middle.params, "ppo": p.middle.ppo.params(state.middle_ppo),
             "noise": noise}
   per_env = {"obs": obs, "mode": state.mode, "key": jax.random.split(key, p.config.num_envs)}
   goal, ppo_action, log_prob = _per_env(
@@ -211,7 +208,7 @@ def _new_segments(p: _Parts, state, obs, key, warm, t, noise):
       obs, goal, ppo_action, log_prob))
 
 
-def _init(p: _Parts, key) -> SeedState:
+def _init(p: Agent, key) -> SeedState:
   """A seed's state: fresh learners and buffers, reset envs, the first modes and goals."""
   keys, E = InitKeys.split(key), p.config.num_envs
   zeros_modes = jp.zeros((N_MODES,), jp.int32)
@@ -220,7 +217,7 @@ def _init(p: _Parts, key) -> SeedState:
   chooser, mode = p.chooser.init(keys, env_state.obs, middle.params)
   state = SeedState(
       env=env_state, low=p.low.td3.init(keys.low), middle=middle,
-      middle_ppo=p.middle.init_explorer(keys.middle_ppo, E), chooser=chooser,
+      middle_ppo=p.middle.init_ppo(keys.middle_ppo, E), chooser=chooser,
       low_buffer=p.low.init_buffer(), middle_buffer=p.middle.init_buffer(),
       goal=jp.zeros((E, hierarchy.GOAL_SIZE)),
       segment=jax.vmap(p.middle.new_segment)(env_state.obs, jp.zeros((E, hierarchy.GOAL_SIZE)),
@@ -234,14 +231,14 @@ def _init(p: _Parts, key) -> SeedState:
                        p.config.middle_goal_noise)
 
 
-def _clock(p: _Parts, t) -> Clock:
+def _clock(p: Agent, t) -> Clock:
   warm = t < p.config.warmup_steps
   i = t % p.config.c
   return Clock(t=t, warm=warm, live=jp.logical_not(warm), i=i,
                episode_end=(t + 1) % p.env.episode_length == 0, segment_end=i == p.config.c - 1)
 
 
-def _act(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys, hp: Numbers):
+def _act(p: Agent, state: SeedState, clock: Clock, keys: StepKeys, hp: Numbers):
   """Low acts in every env and the envs step; the Low buffer, segments and horizons record it."""
   s = state.env.obs
   per_env = {"s": s, "goal": state.goal, "key": jax.random.split(keys.act, p.config.num_envs)}
@@ -271,7 +268,7 @@ def _act(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys, hp: Numbers)
   return state, metrics
 
 
-def _reset(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys) -> SeedState:
+def _reset(p: Agent, state: SeedState, clock: Clock, keys: StepKeys) -> SeedState:
   """Episode end. It falls on a segment's end (episode_length is a multiple of c), after s_c
   is recorded. With ``episode_start="reset"`` the reset comes before the segment's end, so the
   next goal and mode are chosen from the new state; with ``"last"`` (the paper's code) after
@@ -302,7 +299,7 @@ def _subgoals(start, end) -> dict:
           "low/subgoal_progress": Metric.when(progress.mean(), 1.0)}
 
 
-def _end_segment(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys, hp: Numbers):
+def _end_segment(p: Agent, state: SeedState, clock: Clock, keys: StepKeys, hp: Numbers):
   """A Middle decision: Middle transitions into the TD3 buffer and PPO rollout; the mode
   switch; the next goals."""
   t, warmup = clock.t, p.config.warmup_steps
@@ -314,7 +311,7 @@ def _end_segment(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys, hp: 
         lambda low_params, e: p.middle.close(e["segment"], clock.episode_end, low_params,
                                              e["key"], e["start"]), state.low.params, per_env)
     state = state.replace(middle_buffer=buffers.add(state.middle_buffer, items),
-                          middle_ppo=p.middle.explorer.store(state.middle_ppo, t, steps))
+                          middle_ppo=p.middle.ppo.store(state.middle_ppo, t, steps))
     decision = modes.Decision(t=t, episode_end=clock.episode_end, obs=state.env.obs,
                               s_c=items["transition"].next_obs,
                               reward=items["transition"].reward, middle=state.middle.params)
@@ -329,7 +326,7 @@ def _end_segment(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys, hp: 
   return gated(clock.segment_end, end_segment, state)  # zeros where skipped
 
 
-def _updates(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys, hp: Numbers):
+def _updates(p: Agent, state: SeedState, clock: Clock, keys: StepKeys, hp: Numbers):
   """Learning after warm-up, each level on its own clock."""
   t, live = clock.t, clock.live
 
@@ -340,14 +337,14 @@ def _updates(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys, hp: Numb
     return p.middle.td3_update(middle, buffer, low_params, keys.middle, t, hp.middle)
 
   def middle_ppo_update(middle_ppo):
-    return p.middle.explorer.update(middle_ppo, t, hp.middle_ppo)
+    return p.middle.ppo.update(middle_ppo, t, hp.middle_ppo)
 
   low, m_low = gated(live, low_update, state.low, (state.low_buffer,))
   middle, m_middle = gated(live & clock.segment_end, middle_update, state.middle,
                            (state.middle_buffer, low.params))
   state = state.replace(low=low, middle=middle)
   metrics = {**level("low", m_low, live), **level("middle", m_middle, live & clock.segment_end)}
-  if p.middle.explorer.trains:
+  if p.middle.ppo.trains:
     every = p.config.middle_ppo_every
     ran = live & (t % every == every - 1)
     middle_ppo, m = gated(ran, middle_ppo_update, state.middle_ppo)
@@ -357,7 +354,7 @@ def _updates(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys, hp: Numb
   return state.replace(chooser=chooser), {**metrics, **m}
 
 
-def _evaluation(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys, hp: Numbers):
+def _evaluation(p: Agent, state: SeedState, clock: Clock, keys: StepKeys, hp: Numbers):
   """Middle TD3 + Low TD3 without noise every ``eval_every`` steps: S_E (evaluate.py)."""
   ran = clock.live & ((clock.t + 1) % p.config.eval_every == 0)
 
@@ -376,13 +373,13 @@ def _evaluation(p: _Parts, state: SeedState, clock: Clock, keys: StepKeys, hp: N
   return state, level("eval", m, ran)
 
 
-def _evaluate(p: _Parts, state: SeedState, t, key) -> evaluate_lib.Evaluation:
+def _evaluate(p: Agent, state: SeedState, t, key) -> evaluate_lib.Evaluation:
   """The seed's evaluation (``evaluate.py``) at global step ``t`` (the Middle PPO's std)."""
-  ppo = {"params": p.middle.explorer.params(state.middle_ppo), "t": t}
+  ppo = {"params": p.middle.ppo.params(state.middle_ppo), "t": t}
   return p.evaluator(state.low.params, state.middle.params, ppo, key)
 
 
-def _step(p: _Parts, state: SeedState, t, hp: Numbers):
+def _step(p: Agent, state: SeedState, t, hp: Numbers):
   """One env step of every env of the seed, at global step ``t`` (unbatched), with the
   lane's numbers ``hp``."""
   keys, clock = StepKeys.split(state.key), _clock(p, t)
@@ -401,19 +398,16 @@ def _step(p: _Parts, state: SeedState, t, hp: Numbers):
 
 
 def make_agent(env, config: AgentConfig = AgentConfig()) -> Agent:
-  """Build the agent for an env of ``envs`` (obs[:3] is the robot's xyz)."""
-  config.check_env(env)
+  """Build the agent for an env of ``envs`` (obs[:3] is the robot's xyz): every level from
+  the config, each reading its own fields."""
+  config.check_env(env.episode_length)
   target = jp.asarray(env.target, jp.float32)
-  low = make_low(env.observation_size, env.action_size, env.action_limit, config.low,
-                 config.low_updates, config.low_done_goal)
+  low = make_low(env.observation_size, env.action_size, env.action_limit, config)
   middle = make_middle(env.observation_size, env.action_size, target, config, low.td3.act)
   chooser = modes.make_chooser(config, env.observation_size, target, middle.value)
   evaluator = evaluate_lib.make_evaluate(
       env, config.c, low.td3.act, middle.policy, config.eval_episodes,
       config.eval_target_networks, config.eval_goal, config.eval_extra,
-      middle.ppo_goal if middle.explorer.trains else None)
-  p = _Parts(config=config, env=env, low=low, middle=middle, chooser=chooser,
-             evaluator=evaluator)
+      middle.ppo_goal if middle.ppo.trains else None)
   return Agent(config=config, env=env, low=low, middle=middle, chooser=chooser,
-               init=lambda key: _init(p, key), step=lambda state, t, hp: _step(p, state, t, hp),
-               evaluate=lambda state, t, key: _evaluate(p, state, t, key))
+               evaluator=evaluator)

@@ -11,12 +11,12 @@ anything compiles, with a message that names the field. This module imports no J
 command line reads it to build its flags and answer ``--help`` at once.
 
 Each field is declared once, where its class declares it: its type, its default, whether it
-is a lane's traced number (``traced(default)``, ``numbers.py``), its allowed values
+is a lane's traced number (``traced(default)``, ``lanes.py``), its allowed values
 (``choice(default, allowed)``, checked by ``check_choices``) and, in the comment beside or
 above it, what it means (the command line's help text, ``experiments/flags.py``).
 
 One way to change a configuration: dotted paths (``override``), as presets, methods, the
-command line, tests and benchmarks all do; ``config_from_dict`` inverts ``io.to_jsonable`` so
+command line, tests and benchmarks all do; ``config_from_dict`` inverts ``folder.to_jsonable`` so
 that a run is loaded from its ``config.json``:
 
     config = override(AgentConfig(), {"top.alpha": (0, 0.4, 0.7), "middle.target_smoothing": True})
@@ -29,7 +29,7 @@ from __future__ import annotations
 import collections.abc
 import dataclasses
 import typing
-from typing import Any, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 from nonmono_jax.core import validation
 
@@ -39,7 +39,6 @@ TD3, PPO, RANDOM = 0, 1, 2
 MODES = ("TD3", "PPO", "RANDOM")
 GOAL_SIZE = 3  # goals are xyz offsets: the first 3 observation entries of every env
 
-SWITCHES = ("none", "top", "homeostasis")  # HIRO / ours / Ref:Uniform and Ref:PPO
 EXPLORE_MODES = ("ppo", "random")  # the explore mode of the homeostasis switch
 RANDOM_GOALS = ("uniform", "gaussian")  # ours uniform; the paper's code clip(randn * range)
 RELABELS = ("store", "sample")  # the paper's code: once at store, Low target actor; HIRO: per batch
@@ -65,7 +64,7 @@ EVAL_KINDS = EVAL_GOALS + ("ppo",)
 # PyTorch's nn.Linear default (weights and biases U(+-1/sqrt(fan_in))), the paper's code's
 INITS = ("lecun", "torch")
 MEAN_HEADS = ("linear", "tanh")  # the Gaussian PPO's mean head (ppo.py)
-CADENCES = ("periods", "code")  # when the homeostasis trigger checks (switch.py)
+CADENCES = ("periods", "code")  # when the homeostasis trigger checks (modes/trigger.py)
 TARGET_NOISES = ("sample", "batch")  # TD3's target smoothing: a draw per sample, or one per batch
 VALUE_WEIGHTINGS = ("sample", "batch")  # PPO's loss weight on each sample's value error, or on
 #                                         the rollout's mean value loss (the paper's PPOM)
@@ -75,9 +74,44 @@ RELABEL_TIES = ("original", "random")  # an exact tie of HIRO's correction: the 
 TRACED, CHOICES = "traced", "choices"  # the metadata keys of the two declarations below
 
 
+# --- the mode choosers: how g_expl_mode is chosen (AgentConfig.switch) ------------------------
+
+@dataclasses.dataclass(frozen=True)
+class Chooser:
+  """What the configuration knows of one way to choose g_expl_mode: its code, the fields it
+  alone reads, and what the rest of the agent needs of it. Its state and functions are
+  ``nonmono_jax/core/modes/<module>.py`` (``modes.make_chooser`` imports it by this name)."""
+
+  module: str  # its file in nonmono_jax/core/modes/
+  owns: tuple[str, ...] = ()  # dotted fields (or prefixes) that only this chooser reads
+  also_reads: tuple[str, ...] = ()  # fields another chooser owns that it reads too
+  horizon: str = "c"  # the field of the horizon that episodes must hold whole
+  # whether the agent has a Middle PPO, and which of its own fields a config leaves unread
+  middle_ppo: Callable[[Any], bool] = lambda config: False
+  unread: Callable[[Any], tuple[str, ...]] = lambda config: ()
+
+
+CHOOSERS = {
+    "none": Chooser("fixed"),  # HIRO: always TD3
+    # ours: the Top PPO picks a mode per Top horizon (alpha unread without the reward mod)
+    "top": Chooser("top", owns=("top",), horizon="top.horizon", middle_ppo=lambda c: True,
+                   unread=lambda c: () if c.top.reward_mod else ("top.alpha",)),
+    # Ref:Uniform and Ref:PPO: Pislar et al.'s informed trigger; its starting phase is the
+    # Top's starting mode (top.starting_steps)
+    "homeostasis": Chooser("trigger", owns=("homeostasis", "explore_mode"),
+                           also_reads=("top.starting_steps",),
+                           middle_ppo=lambda c: c.explore_mode == "ppo"),
+}
+SWITCHES = tuple(CHOOSERS)  # "none" (HIRO), "top" (ours), "homeostasis" (Ref:Uniform, Ref:PPO)
+
+
+def _under(path: str, prefix: str) -> bool:
+  return path == prefix or path.startswith(prefix + ".")
+
+
 def traced(default) -> Any:
   """A dataclass field whose value is a lane's number (a float, a bool as 0/1, or a tuple of
-  floats), read by the jitted step from ``numbers.Numbers`` rather than compiled in."""
+  floats), read by the jitted step from ``lanes.Numbers`` rather than compiled in."""
   return dataclasses.field(default=default, metadata={TRACED: True})
 
 
@@ -208,7 +242,7 @@ class PPOConfig:
 
 @dataclasses.dataclass(frozen=True)
 class HomeostasisConfig:
-  """The informed trigger's options (``switch.py``): the paper's Ref code decides at Middle
+  """The informed trigger's options (``modes/trigger.py``): the paper's Ref code decides at Middle
   decisions, so ``k`` and ``gamma`` are per Middle segment of c env steps."""
 
   rho: float = traced(0.01)  # target exploit -> explore switch rate per trigger check
@@ -357,24 +391,28 @@ class AgentConfig:
       raise ValueError("middle_ppo must be Gaussian (discrete=False)")
 
   @property
+  def chooser(self) -> Chooser:
+    """The chooser of ``switch`` (``CHOOSERS``)."""
+    return CHOOSERS[self.switch]
+
+  @property
   def uses_middle_ppo(self) -> bool:
-    return self.switch == "top" or (self.switch == "homeostasis" and self.explore_mode == "ppo")
+    return self.chooser.middle_ppo(self)
 
   def reads(self, path: str) -> bool:
-    """Whether the agent this config builds reads the field at dotted ``path``: the Top's
-    fields only with switch "top" (alpha only with the reward modification), the homeostasis
-    switch's only with switch "homeostasis", the Middle PPO's only where it exists. A sweep
-    of a field a method does not read would run identical lanes (``plan.new_run`` drops it)."""
-    unread = []
-    if self.switch != "top":
-      unread.append("top")
-    elif not self.top.reward_mod:
-      unread.append("top.alpha")
-    if self.switch != "homeostasis":
-      unread += ["homeostasis", "explore_mode"]
+    """Whether the agent this config builds reads the field at dotted ``path``: a chooser's
+    fields only with that chooser (``CHOOSERS``: the Top's with switch "top", alpha only with
+    the reward modification; the trigger's with "homeostasis"), the Middle PPO's only where it
+    exists. A sweep of a field a method does not read would run identical lanes
+    (``plan.new_run`` drops it)."""
+    mine = self.chooser
+    if any(_under(path, f) or _under(f, path) for f in mine.also_reads):
+      return True
+    unread = [f for c in CHOOSERS.values() if c is not mine for f in c.owns]
+    unread += mine.unread(self)
     if not self.uses_middle_ppo:
       unread += ["middle_ppo", "middle_ppo_every"]
-    return not any(path == u or path.startswith(u + ".") for u in unread)
+    return not any(_under(path, u) for u in unread)
 
   @property
   def middle_rollout_length(self) -> int:
@@ -386,16 +424,12 @@ class AgentConfig:
     warm-up: evaluations run after step t when (t + 1) % eval_every == 0 and t >= warm-up)."""
     return -(-(self.warmup_steps + 1) // self.eval_every) * self.eval_every
 
-  @property
-  def explore_mode_index(self) -> int:
-    return PPO if self.explore_mode == "ppo" else RANDOM
-
-  def check_env(self, env) -> None:
-    """The env's episode must hold whole Middle (and Top) horizons."""
-    horizon = self.top.horizon if self.switch == "top" else self.c
-    name = "top.horizon" if self.switch == "top" else "c"
-    if env.episode_length % horizon:
-      raise ValueError(f"episode_length ({env.episode_length}) must be a multiple of {name} "
+  def check_env(self, episode_length: int) -> None:
+    """An episode of ``episode_length`` steps holds whole Middle (and the chooser's) horizons."""
+    name = self.chooser.horizon
+    horizon = get(self, name)
+    if episode_length % horizon:
+      raise ValueError(f"episode_length ({episode_length}) must be a multiple of {name} "
                        f"({horizon}): horizons end with episodes")
 
 
@@ -496,7 +530,7 @@ def flatten(nested: Mapping[str, Any], prefix: str = "") -> dict:
 
 
 def config_from_dict(data: Mapping[str, Any], base):
-  """The config whose JSON (``io.to_jsonable``) is ``data``: the inverse of that, by the
+  """The config whose JSON (``folder.to_jsonable``) is ``data``: the inverse of that, by the
   dataclasses' fields. Fields ``data`` lacks (added to the code after it was written) keep
   ``base``'s values (see ``missing_fields``); an unknown one is a ValueError naming it."""
   if not isinstance(data, Mapping):

@@ -33,6 +33,16 @@ from nonmono_jax.core.config import EVAL_KINDS as KINDS  # the order of ``Evalua
 
 
 @struct.dataclass
+class Outcome:
+  """What episodes of one kind give: per episode (``outcome``), or their means (``Evaluator``)."""
+
+  success: jax.Array  # 1.0 if the robot came within the success radius after any step
+  distance: jax.Array  # the final distance to the target (where the kind reads it)
+  return_: jax.Array  # the return up to there
+  unstable: jax.Array  # env steps whose physics went unstable (0 normally)
+
+
+@struct.dataclass
 class Evaluation:
   """One evaluation of a seed: S_E of the run's kind and the other kinds' S_E."""
 
@@ -86,17 +96,19 @@ def make_episode(env, c: int, low_act: Callable, goal_act: Callable,
   return episode
 
 
-def outcome(records, kind: str):
-  """(success, final distance, return, unstable steps) of one episode's records: the final
-  distance where the code's episode would stop (its first success) for ``requery`` and
-  ``ppo``, at the episode's end for ``held``."""
+def outcome(records, kind: str) -> Outcome:
+  """The ``Outcome`` of one episode's records: the final distance where the code's episode
+  would stop (its first success) for ``requery`` and ``ppo``, at the episode's end for
+  ``held``."""
   success, unstable = records["success"].max(), records["unstable"].sum()
   if kind == "held":
-    return success, records["distance"][-1], records["reward"].sum(), unstable
+    return Outcome(success=success, distance=records["distance"][-1],
+                   return_=records["reward"].sum(), unstable=unstable)
   n = records["success"].shape[0]
   last = jp.where(success > 0, jp.argmax(records["success"] > 0), n - 1)
-  return (success, records["distance"][last],
-          jp.where(jp.arange(n) <= last, records["reward"], 0.0).sum(), unstable)
+  return Outcome(success=success, distance=records["distance"][last],
+                 return_=jp.where(jp.arange(n) <= last, records["reward"], 0.0).sum(),
+                 unstable=unstable)
 
 
 def acting_params(params, target_networks: bool):
@@ -144,11 +156,12 @@ def make_evaluate(env, c: int, low_act: Callable, middle_act: Callable, episodes
     for k in kinds:
       params = ppo_params if k == "ppo" else middle_params
       one = lambda kk, k=k, params=params: outcome(runs[k](low_params, params, kk)[1], k)
-      success, distance, ret, unstable = jax.vmap(one)(keys)
-      results[k] = (success.mean(), distance.mean(), ret.mean(), unstable.sum())
-    success, distance, ret, unstable = results[main]
-    by_kind = jp.stack([results[k][0] if k in results else jp.zeros(()) for k in KINDS])
-    return Evaluation(success=success, distance=distance, return_=ret, unstable=unstable,
-                      by_kind=by_kind)
+      o = jax.vmap(one)(keys)
+      results[k] = Outcome(success=o.success.mean(), distance=o.distance.mean(),
+                           return_=o.return_.mean(), unstable=o.unstable.sum())
+    ran = results[main]
+    by_kind = jp.stack([results[k].success if k in results else jp.zeros(()) for k in KINDS])
+    return Evaluation(success=ran.success, distance=ran.distance, return_=ran.return_,
+                      unstable=ran.unstable, by_kind=by_kind)
 
   return Evaluator(kinds=kinds, evaluate=evaluate)

@@ -4,8 +4,9 @@
     g'  = s[:3] + g - s'[:3];   r_L = -||g'||;   done_L = ||g'|| <= 1.5
     Low buffer <- (s, g, a, r_L, s', g', done_L);  ``updates`` TD3 updates per env step
 
-``done_goal="current"`` tests the goal of the step instead, ||g|| <= 1.5 (the paper's code:
-"s was already within 1.5 of its subgoal").
+``low_done_goal="current"`` tests the goal of the step instead, ||g|| <= 1.5 (the paper's code:
+"s was already within 1.5 of its subgoal"). Its options: ``AgentConfig.low`` (its TD3),
+``low_updates`` and ``low_done_goal``.
 """
 
 from __future__ import annotations
@@ -15,7 +16,8 @@ import jax
 import jax.numpy as jp
 
 from nonmono_jax.core import buffers, hierarchy, learning, td3
-from nonmono_jax.core.numbers import Numbers
+from nonmono_jax.core.config import AgentConfig
+from nonmono_jax.core.lanes import Numbers
 
 
 @dataclasses.dataclass(frozen=True, eq=False)  # identity: it holds arrays
@@ -24,12 +26,10 @@ class Low:
   ``buffers.ReplayBuffer`` of ``td3.Transition``s in the agent's ``SeedState``."""
 
   td3: td3.TD3
-  config: td3.TD3Config
+  config: AgentConfig
   obs_size: int
   action_size: int
   limit: jax.Array  # (action_size,) the torque (or velocity) limit
-  updates: int = 1  # TD3 updates per env step
-  done_goal: str = "next"  # done_L on g' ("next") or on g ("current", the paper's code)
 
   def act(self, params: td3.TD3Params, obs, goal, key, warm, hp: Numbers) -> jax.Array:
     """The behaviour action: uniform during warm-up, else pi_L plus Gaussian noise (std
@@ -44,12 +44,13 @@ class Low:
     return td3.Transition(obs=s, context=g, action=a,
                           reward=hierarchy.low_reward(s, g, s_next), next_obs=s_next,
                           next_context=g_next,
-                          done=hierarchy.low_done(g_next if self.done_goal == "next" else g))
+                          done=hierarchy.low_done(g_next if self.config.low_done_goal == "next"
+                                                  else g))
 
   def update(self, state: td3.TD3State, buffer: buffers.ReplayBuffer, key, t,
              hp: Numbers) -> tuple[td3.TD3State, dict]:
-    """``updates`` TD3 updates on batches from the Low buffer; metrics of the last."""
-    config, updates = self.config, self.updates
+    """``low_updates`` TD3 updates on batches from the Low buffer; metrics of the last."""
+    config, updates = self.config.low, self.config.low_updates
 
     def one(state, i):
       kb, ku = jax.random.split(jax.random.fold_in(key, i))
@@ -64,12 +65,10 @@ class Low:
     n = self.obs_size
     example = jax.eval_shape(self.transition, vec(n), vec(hierarchy.GOAL_SIZE),
                              vec(self.action_size), vec(n))
-    return buffers.init(example, self.config.buffer_size)
+    return buffers.init(example, self.config.low.buffer_size)
 
 
-def make_low(obs_size: int, action_size: int, action_limit, config: td3.TD3Config,
-             updates: int = 1, done_goal: str = "next") -> Low:
-  learner = td3.make_td3(obs_size, hierarchy.GOAL_SIZE, action_size, action_limit, config)
+def make_low(obs_size: int, action_size: int, action_limit, config: AgentConfig) -> Low:
+  learner = td3.make_td3(obs_size, hierarchy.GOAL_SIZE, action_size, action_limit, config.low)
   lim = jp.broadcast_to(jp.asarray(action_limit, jp.float32), (action_size,))
-  return Low(td3=learner, config=config, obs_size=obs_size, action_size=action_size, limit=lim,
-             updates=updates, done_goal=done_goal)
+  return Low(td3=learner, config=config, obs_size=obs_size, action_size=action_size, limit=lim)

@@ -47,19 +47,10 @@ class Metric:
     return self.value.mean(axis=axis)
 
 
-def is_metric(x) -> bool:
-  return isinstance(x, Metric)
-
-
 def level(name: str, values: dict, updated) -> dict:
   """``{name/k: mean over the steps where updated}`` and ``name/updated`` (their count)."""
   return {**{f"{name}/{k}": Metric.when(v, updated) for k, v in values.items()},
           f"{name}/updated": Metric.sum(jp.asarray(updated, jp.float32))}
-
-
-def zeros_like(metrics: dict) -> dict:
-  """The same metrics with every value (and weight) zero: a skipped branch's output."""
-  return jax.tree.map(jp.zeros_like, metrics)
 
 
 def reduce(metrics: dict, axis: int = 0) -> dict:

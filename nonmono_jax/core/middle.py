@@ -33,7 +33,7 @@ from flax import struct
 
 from nonmono_jax.core import buffers, hierarchy, learning, ppo, relabel, td3
 from nonmono_jax.core.config import AgentConfig
-from nonmono_jax.core.numbers import Numbers
+from nonmono_jax.core.lanes import Numbers
 
 
 @struct.dataclass
@@ -50,7 +50,7 @@ class Segment:
 
 
 @struct.dataclass
-class Explorer:
+class MiddlePPOState:
   """The Middle PPO's learner and its rollout, (E, middle_ppo_every / c) per seed."""
 
   learner: ppo.PPOState
@@ -61,7 +61,7 @@ class Explorer:
 
 
 @struct.dataclass
-class NoExplorer:
+class NoMiddlePPOState:
   """The Middle PPO of a method without one (HIRO, Ref:Uniform): nothing."""
 
   def learner_params(self) -> dict:
@@ -69,52 +69,51 @@ class NoExplorer:
 
 
 @dataclasses.dataclass(frozen=True, eq=False)  # identity: it holds arrays
-class PPOExplorer:
+class MiddlePPO:
   """The Middle PPO as a sub-policy (``make_middle`` builds it): its goal proposals, what it
-  stores of a segment, its learning. ``Idle`` is the same for a method without one."""
+  stores of a segment, its learning. ``NoMiddlePPO`` is the same for a method without one."""
 
-  ppo: ppo.PPO
+  learner: ppo.PPO
   config: AgentConfig
   trains = True
 
   def std(self, t):
     return ppo.gaussian_std(t, self.config.middle_ppo)
 
-  def init(self, key, rollout: ppo.Rollout) -> Explorer:
+  def init(self, key, rollout: ppo.Rollout) -> MiddlePPOState:
     """The learner (from ``key``) and the empty ``rollout`` (E, middle_ppo_every / c)."""
-    return Explorer(learner=self.ppo.init(key), rollout=rollout)
+    return MiddlePPOState(learner=self.learner.init(key), rollout=rollout)
 
-  def params(self, state: Explorer):
+  def params(self, state: MiddlePPOState):
     return state.learner.params
 
   def propose(self, params, obs, key, t):
     """(its sample, log pi of it) at (s, target)."""
-    return self.ppo.act(params, obs, key, self.std(t))
+    return self.learner.act(params, obs, key, self.std(t))
 
   def stored(self, params, obs, g, proposal, t):
     """(action, log pi) the rollout keeps for a segment that ran goal g: PPO's own sample
     ("own", the paper's code) or g ("executed")."""
     if self.config.middle_ppo_sample == "own":
       return proposal
-    return g, self.ppo.log_prob(params, obs, g, self.std(t))
+    return g, self.learner.log_prob(params, obs, g, self.std(t))
 
-  def store(self, state: Explorer, t, steps) -> Explorer:
+  def store(self, state: MiddlePPOState, t, steps) -> MiddlePPOState:
     """The segments' PPO steps (E, ...) into their rollout slot, the segment ending at t."""
     slot = (t // self.config.c) % self.config.middle_rollout_length
-    rollout = jax.tree.map(lambda r, x: r.at[:, slot].set(x), state.rollout, steps)
-    return state.replace(rollout=rollout)
+    return state.replace(rollout=ppo.set_step(state.rollout, slot, steps))
 
-  def update(self, state: Explorer, t, hp: Numbers):
+  def update(self, state: MiddlePPOState, t, hp: Numbers):
     """One update on the rollout, at the std of step t (reported as ``std``); ``hp`` the
     Middle PPO's numbers."""
     std = self.std(t)
     weights = jp.ones(state.rollout.reward.shape, jp.float32)
-    new, m = self.ppo.update(state.learner, state.rollout, std, weights, hp)
+    new, m = self.learner.update(state.learner, state.rollout, std, weights, hp)
     return state.replace(learner=new), {**m, "std": std}
 
 
 @dataclasses.dataclass(frozen=True)
-class Idle:
+class NoMiddlePPO:
   """No Middle PPO: proposes nothing any mode would take, stores and learns nothing."""
 
   trains = False
@@ -122,8 +121,8 @@ class Idle:
   def std(self, t):
     return jp.zeros(())
 
-  def init(self, key, rollout) -> NoExplorer:
-    return NoExplorer()
+  def init(self, key, rollout) -> NoMiddlePPOState:
+    return NoMiddlePPOState()
 
   def params(self, state):
     return None
@@ -144,11 +143,11 @@ class Idle:
 @dataclasses.dataclass(frozen=True, eq=False)  # identity: it holds arrays
 class Middle:
   """The Middle's functions (``make_middle`` builds it): goals from the three sub-policies,
-  segments, the Middle TD3 and its buffer; the Middle PPO is ``explorer``."""
+  segments, the Middle TD3 and its buffer; the Middle PPO is ``ppo``."""
 
   config: AgentConfig
   td3: td3.TD3
-  explorer: PPOExplorer | Idle  # the Middle PPO, or Idle where the method has none
+  ppo: MiddlePPO | NoMiddlePPO  # the Middle PPO, or NoMiddlePPO where the method has none
   obs_size: int
   action_size: int
   target: jax.Array  # (3,) the task's target
@@ -177,11 +176,11 @@ class Middle:
     g_warm = self.random_goal(k1, self.config.warmup_goal)
     g_td3 = self.td3.explore(td3_params, obs, self.context, k2, noise)
     ppo_obs = jp.concatenate([obs, self.target])
-    proposal = self.explorer.propose(ppo_params, ppo_obs, k3, t)
+    proposal = self.ppo.propose(ppo_params, ppo_obs, k3, t)
     g_ppo = jp.clip(proposal[0], -self.goal_range, self.goal_range)
     g = jp.select([warm, mode == hierarchy.RANDOM, mode == hierarchy.PPO],
                   [g_warm, g_random, g_ppo], g_td3)
-    return (g, *self.explorer.stored(ppo_params, ppo_obs, g, proposal, t))
+    return (g, *self.ppo.stored(ppo_params, ppo_obs, g, proposal, t))
 
   def new_segment(self, obs, g, ppo_action, log_prob) -> Segment:
     c = self.config.c
@@ -218,8 +217,7 @@ class Middle:
                         next_obs=seg.obs[c], next_context=context, done=seg.success)
     item = ({"transition": tr} if self.relabels_at_store else
             {"transition": tr, "states": states, "actions": seg.actions})
-    ends_returns = 0.0 if self.config.returns_cross_episodes else 1.0
-    done = jp.maximum(seg.success, ends_returns * jp.asarray(episode_end, jp.float32))
+    done = ppo.terminal(seg.success, episode_end, self.config.returns_cross_episodes)
     step = ppo.Rollout(obs=jp.concatenate([seg.obs[0], self.target]), action=seg.ppo_action,
                        log_prob=seg.log_prob, reward=reward, done=done)
     return item, step
@@ -249,20 +247,20 @@ class Middle:
     return buffers.template(lambda *a: self.pack(*a)[1], segment, goal, False,
                             lead=(self.config.middle_rollout_length,))
 
-  def init_explorer(self, key, num_envs: int) -> Explorer | NoExplorer:
-    """The Middle PPO's state (nothing for ``Idle``): its learner and a rollout per env."""
+  def init_ppo(self, key, num_envs: int) -> MiddlePPOState | NoMiddlePPOState:
+    """The Middle PPO's state (nothing for ``NoMiddlePPO``): its learner and a rollout per env."""
     rollout = jax.vmap(lambda _: self.init_rollout())(jp.arange(num_envs))
-    return self.explorer.init(key, rollout)
+    return self.ppo.init(key, rollout)
 
   def policy(self, td3_params: td3.TD3Params, obs) -> jax.Array:
     """The noiseless Middle TD3 goal at s (towards the target)."""
     return self.td3.act(td3_params, obs, self.context)
 
-  def ppo_goal(self, ppo, obs, key) -> jax.Array:
+  def ppo_goal(self, middle_ppo, obs, key) -> jax.Array:
     """The Middle PPO's goal at s as the code evaluates it: a sample (std at step
-    ``ppo["t"]``, params ``ppo["params"]``) clipped to the goal range."""
-    proposal = self.explorer.propose(ppo["params"], jp.concatenate([obs, self.target]), key,
-                                     ppo["t"])
+    ``middle_ppo["t"]``, params ``middle_ppo["params"]``) clipped to the goal range."""
+    proposal = self.ppo.propose(middle_ppo["params"], jp.concatenate([obs, self.target]), key,
+                                middle_ppo["t"])
     return jp.clip(proposal[0], -self.goal_range, self.goal_range)
 
   def value(self, td3_params: td3.TD3Params, obs) -> jax.Array:
@@ -304,8 +302,8 @@ def make_middle(obs_size: int, action_size: int, target, config: AgentConfig,
   target = jp.asarray(target, jp.float32)
   context = target if config.middle_td3_input == "state_target" else jp.zeros((0,), jp.float32)
   learner = td3.make_td3(obs_size, context.shape[0], k, goal_range, config.middle)
-  explorer = (PPOExplorer(ppo.make_ppo(obs_size + k, k, config.middle_ppo, goal_range), config)
-              if config.uses_middle_ppo else Idle())
-  return Middle(config=config, td3=learner, explorer=explorer, obs_size=obs_size,
+  middle_ppo = (MiddlePPO(ppo.make_ppo(obs_size + k, k, config.middle_ppo, goal_range), config)
+                if config.uses_middle_ppo else NoMiddlePPO())
+  return Middle(config=config, td3=learner, ppo=middle_ppo, obs_size=obs_size,
                 action_size=action_size, target=target, goal_range=goal_range, context=context,
                 low_act=low_act)

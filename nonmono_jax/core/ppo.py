@@ -13,9 +13,9 @@ One update, over a rollout of N transitions (N = 3 at the Middle, 8 at the Top):
       theta, phi <- Adam(grad mean_t(w_t l_t))                # lr_actor on theta, lr_critic on phi
 
 ``w_t`` is 1 except at the Top, where Algorithm 1's Train_T sets ``l + S_E l`` in the
-exploration modes and ``l - S_E l`` in the TD3 mode (``top_loss_weights``). Note that Adam is
-invariant to a uniform rescaling of the loss: the weights change an update only where they
-differ between samples. ``value_weighting`` says what the weight multiplies of the value term:
+exploration modes and ``l - S_E l`` in the TD3 mode (``modes.top.loss_weights``). Note that
+Adam is invariant to a uniform rescaling of the loss: the weights change an update only where
+they differ between samples. ``value_weighting`` says what the weight multiplies of the value term:
 the sample's own ``c_v (V_phi(s_t) - R_t)^2`` (``"sample"``), or the rollout's mean value loss
 ``c_v mean_j (V_phi(s_j) - R_j)^2``, which the paper's code (``PPOM.train``) adds to every
 sample's loss before weighting it (``"batch"``); with weights of 1 the two are the same.
@@ -48,7 +48,7 @@ from flax import struct
 from nonmono_jax.core import learning, networks
 # declared with the agent's config, which imports no JAX
 from nonmono_jax.core.config import MEAN_HEADS, PPOConfig  # noqa: F401
-from nonmono_jax.core.numbers import Numbers
+from nonmono_jax.core.lanes import Numbers
 
 _RETURN_EPS = 1e-7  # the port's normaliser epsilon
 _LOG_2PI_E = math.log(2.0 * math.pi * math.e)
@@ -129,9 +129,17 @@ def monte_carlo_returns(rewards: jax.Array, dones: jax.Array, gamma: float,
   return returns
 
 
-def top_loss_weights(modes: jax.Array, s_e: jax.Array, td3_mode: int = 0) -> jax.Array:
-  """Train_T's per-sample weights: ``1 - S_E`` in the TD3 mode, ``1 + S_E`` in the others."""
-  return jp.where(jp.asarray(modes) == td3_mode, 1.0 - s_e, 1.0 + s_e)
+def set_step(rollouts: Rollout, slot, steps: Rollout) -> Rollout:
+  """Every env's rollout (E, T) with its step ``slot`` set to ``steps`` (E,)."""
+  return jax.tree.map(lambda r, x: r.at[:, slot].set(x), rollouts, steps)
+
+
+def terminal(done, episode_end, returns_cross_episodes: bool) -> jax.Array:
+  """A rollout step's terminal: its own ``done``, or the episode's end, so that Monte Carlo
+  returns never cross episodes, unless ``returns_cross_episodes`` (the paper's code: its
+  returns end at their own terminals only)."""
+  ends_returns = 0.0 if returns_cross_episodes else 1.0
+  return jp.maximum(done, ends_returns * jp.asarray(episode_end, jp.float32))
 
 
 def make_ppo(obs_size: int, action_size: int, config: PPOConfig = PPOConfig(),
@@ -236,7 +244,7 @@ def make_ppo(obs_size: int, action_size: int, config: PPOConfig = PPOConfig(),
 
   def update(state: PPOState, batch: Rollout, std, loss_weights, hp: Numbers):
     """K epochs on the rollout, each sample's loss times its ``loss_weights``; ``hp`` the
-    lane's numbers (``numbers.of(config)``: rates, gamma, clip, coefficients)."""
+    lane's numbers (``lanes.of(config)``: rates, gamma, clip, coefficients)."""
     rates = {"actor": hp.lr_actor, "critic": hp.lr_critic}
 
     def epoch(carry, _):

@@ -31,7 +31,7 @@ from flax import struct
 from nonmono_jax.core import learning, networks
 # declared with the agent's config, which imports no JAX
 from nonmono_jax.core.config import TD3Config  # noqa: F401
-from nonmono_jax.core.numbers import Numbers
+from nonmono_jax.core.lanes import Numbers
 
 
 @struct.dataclass
@@ -142,7 +142,7 @@ def make_td3(obs_size: int, context_size: int, action_size: int, action_scale,
 
   def update(state: TD3State, batch: Transition, key, update_actor, hp: Numbers):
     """One critic step; the actor step and Polyak targets when ``update_actor``; ``hp`` the
-    lane's numbers (``numbers.of(config)``: rates, gamma, tau, noises).
+    lane's numbers (``lanes.of(config)``: rates, gamma, tau, noises).
 
     ``update_actor`` should be unbatched (from the trainer's step counter) so that under
     ``vmap`` over seeds the ``lax.cond`` stays a branch rather than a select.

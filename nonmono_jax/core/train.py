@@ -5,6 +5,7 @@
     for t0 in range(0, total, trainer.chunk_steps):  # Python: progress, logs, checkpoints
       states, metrics = trainer.chunk(states, t0)   # lax.scan over steps, vmap over seeds
     ev = trainer.evaluate(states, key, t)  # per seed, off the schedule: an Evaluation
+    summary = trainer.summarise(states, metrics)  # what the rows say, typed (summary.py)
 
 Inside a chunk the global step ``t`` is the scan's input and is not batched over seeds, so
 every horizon gate in ``agent.step`` stays a real branch (docs/spec.md, section 6).
@@ -19,9 +20,9 @@ is in the reduced dict.
 ``init``, a previous ``chunk`` or a checkpoint, and do not reuse them after the call.
 
 Variants as lanes (``make_group_trainer``): configs that share one static key
-(``numbers.static_key``: they differ only in fields declared ``traced``, e.g. ours and its
+(``lanes.static_key``: they differ only in fields declared ``traced``, e.g. ours and its
 three ablations, or a sweep of alpha) run as one program of V x S lanes, variant-major (lane
-v * S + i is seed i of variant v), each lane reading its own ``numbers.Numbers``. Lane (v, i)
+v * S + i is seed i of variant v), each lane reading its own ``lanes.Numbers``. Lane (v, i)
 starts from the same key as seed i of variant v run alone, and a config run alone is a group
 of one (its numbers are arguments too, never compile-time constants), so a lane computes bit
 for bit the run of its variant alone.
@@ -49,8 +50,9 @@ import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec as P
 
 from nonmono_jax.core import agent as agent_lib
-from nonmono_jax.core import numbers
+from nonmono_jax.core import lanes
 from nonmono_jax.core import metrics as metrics_lib
+from nonmono_jax.core import summary as summary_lib
 
 
 def compiled_bytes(compiled) -> dict:
@@ -82,6 +84,8 @@ class Trainer:
   # compile(states, t0): compiles the chunk for these states ahead of its first call (which
   # then runs it), so that a caller can say how long compiling took
   compile: Callable | None = None
+  # summarise(states, metrics) -> summary.Summary of a chunk, per lane (jitted)
+  summarise: Callable = jax.jit(summary_lib.summarise)
 
   @property
   def num_lanes(self) -> int:
@@ -118,11 +122,11 @@ def make_trainer(env, config: agent_lib.AgentConfig, num_seeds: int, chunk_steps
 def make_group_trainer(env, configs: Sequence[agent_lib.AgentConfig], num_seeds: int,
                        chunk_steps: int, devices: Sequence[jax.Device] | None = None,
                        compiler_options: Mapping[str, Any] | None = None) -> Trainer:
-  """One program for ``configs`` (equal ``numbers.static_key``s, else a ValueError naming the
+  """One program for ``configs`` (equal ``lanes.static_key``s, else a ValueError naming the
   fields): ``len(configs) * num_seeds`` lanes, each with its variant's ``Numbers``."""
-  key = numbers.check_group(list(configs))
+  key = lanes.check_group(list(configs))
   per_lane = jax.tree.map(lambda x: np.repeat(x, num_seeds, axis=0),
-                          numbers.stack(list(configs)))
+                          lanes.stack(list(configs)))
   return _make(env, key, per_lane, num_seeds, chunk_steps, devices, compiler_options,
                variants=len(configs))
 
@@ -139,8 +143,8 @@ def _make(env, config, per_lane, num_seeds, chunk_steps, devices, compiler_optio
     if v < 1:
       raise ValueError(f"{name} must be >= 1, got {v}")
   devices = list(devices or jax.devices())
-  lanes = variants * num_seeds
-  if lanes % len(devices):
+  n_lanes = variants * num_seeds
+  if n_lanes % len(devices):
     raise ValueError(f"variants x num_seeds ({variants} x {num_seeds}) must be a multiple of "
                      f"the device count ({len(devices)})")
   agent = agent_lib.make_agent(env, config)

@@ -1,9 +1,9 @@
-"""The paper's methods as configurations of one agent, with presets per task: tables of dotted
-overrides (``config.override``) applied to ``AgentConfig()``.
+"""The paper's methods and tasks as data, and the one function that turns them into a
+configuration: tables of dotted overrides (``config.override``) applied to ``AgentConfig()``.
 
-    config = methods.make_config("ours", "AntPush")        # the paper's numbers (docs/spec.md)
-    config = methods.make_config("ref-ppo", "PointPush", {"warmup_steps": 5_000,
-                                                          "top.alpha": (0, 0.4, 0.7)})
+    config, spec = methods.build_config("paper", "ours", "AntPush")   # the paper's numbers
+    config, spec = methods.build_config("quick", "ref-ppo", "PointPush", {"warmup_steps": 5_000},
+                                        run={"steps": 20_000}, widen={"envs_per_seed": 4})
 
 | method              | switch       | Middle sub-policies        | Top loss / reward mods |
 |---------------------|--------------|----------------------------|------------------------|
@@ -23,7 +23,12 @@ Task presets: the Ant tasks are the paper's (docs/spec.md: alpha, S_O, rho, 1000
 3.15M / 6M steps).
 The point tasks are the same methods at a CPU scale: 64-64 networks with faster actors, a
 2K-step warm-up, a 10K-step starting mode, 100-step episodes and evaluation every 2K steps.
-A method's overrides are applied after its task's (``make_config``: task, method, rho, yours).
+
+The layers, in the order ``build_config`` merges them: the task's, the method's, its rho, the
+preset's (``preset_layers``), the widening (``widen_layer``), replay buffers sized for the run
+(``buffer_sizes``) and the caller's overrides. ``build_config`` is the one function that
+returns an ``AgentConfig``: the command, the run library, the tests and the benchmarks all
+build theirs through it. This module imports no JAX (the command's ``--help`` reads it).
 """
 
 from __future__ import annotations
@@ -31,7 +36,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Any, Mapping
 
-from nonmono_jax.core.config import AgentConfig, merge, override
+from nonmono_jax.core.config import AgentConfig, get, merge, override
 
 REF_PPO_EVERY = 40  # env steps between Ref:PPO's PPO updates in the paper's code (ours: 30)
 
@@ -129,24 +134,12 @@ def preset_overrides(method: str, task: str) -> dict:
   return merge(preset.agent, METHOD_OVERRIDES[method], rho)
 
 
-def make_config(method: str, task: str, overrides: Mapping[str, Any] | None = None
-                ) -> AgentConfig:
-  """The AgentConfig of ``method`` on ``task``, then ``overrides`` (dotted paths, the one way
-  to change a config: ``{"c": 5, "top.alpha": (0, 0.4, 0.7)}``)."""
-  return override(AgentConfig(), merge(preset_overrides(method, task), overrides or {}))
-
-
 def buffer_sizes(steps: int, c: int, num_envs: int) -> dict:
   """The dotted buffer sizes that hold a whole run of ``steps`` vector steps: nothing is
   evicted. The paper's buffers are append-only, sized for the run (6M Low transitions, 600K
   Middle): the Low stores one transition per env step, the Middle one per c env steps."""
   return {"low.buffer_size": max(steps * num_envs, 1),
           "middle.buffer_size": max(-(-steps // c) * num_envs, 1)}
-
-
-def size_buffers(config: AgentConfig, steps: int) -> AgentConfig:
-  """``config`` with replay buffers that hold a whole run of ``steps`` (``buffer_sizes``)."""
-  return override(config, buffer_sizes(steps, config.c, config.num_envs))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -182,24 +175,11 @@ def preset_layers(preset: str, method: str, task: str) -> tuple[dict, RunSpec]:
   the method's, the preset's) and the preset's run size."""
   if preset not in PRESETS:
     raise ValueError(f"preset must be one of {', '.join(PRESETS)}; got {preset!r}")
-  agent, run = PRESET_TABLE[preset, TASKS[task].robot]
+  layers = preset_overrides(method, task)  # checks the method and the task
   t = TASKS[task]
+  agent, run = PRESET_TABLE[preset, t.robot]
   spec = RunSpec(**{"steps": t.total_steps, "episode_length": t.episode_length, **run})
-  return merge(preset_overrides(method, task), agent), spec
-
-
-def make_preset(preset: str, method: str, task: str) -> tuple[AgentConfig, RunSpec]:
-  """The agent config and run size of ``preset`` for method x task, with replay buffers sized
-  for the run."""
-  layers, spec = preset_layers(preset, method, task)
-  return size_buffers(override(AgentConfig(), layers), spec.steps), spec
-
-
-def widen(config: AgentConfig, spec: RunSpec, envs_per_seed: int,
-          grad_steps: int | None = None) -> tuple[AgentConfig, RunSpec]:
-  """``config`` and ``spec`` widened (``widen_layer``), buffers sized for the run."""
-  layer, spec = widen_layer(config, spec, envs_per_seed, grad_steps)
-  return size_buffers(override(config, layer), spec.steps), spec
+  return merge(layers, agent), spec
 
 
 def widen_layer(config: AgentConfig, spec: RunSpec, envs_per_seed: int,
@@ -247,3 +227,65 @@ def widen_layer(config: AgentConfig, spec: RunSpec, envs_per_seed: int,
   steps = -(-vec(spec.steps) // chunk) * chunk
   every = max(chunk, vec(spec.checkpoint_every) // chunk * chunk)
   return layer, dataclasses.replace(spec, steps=steps, chunk=chunk, checkpoint_every=every)
+
+
+# --- the configuration of a run ---------------------------------------------------------------
+
+RUN_FIELDS = tuple(f.name for f in dataclasses.fields(RunSpec))
+
+
+def build_config(preset: str, method: str, task: str,
+                 overrides: Mapping[str, Any] | None = None, run: Mapping[str, Any] | None = None,
+                 widen: Mapping[str, Any] | None = None) -> tuple[AgentConfig, RunSpec]:
+  """(config, run size) of ``method`` on ``task`` under ``preset`` ("paper" or "quick"), in
+  one pass. The run size first: the preset's, widened (``widen["envs_per_seed"]`` and
+  ``"grad_steps"``, ``widen_layer``), then ``run``'s changes (``RUN_FIELDS``). Then the config,
+  ``override`` applied once to ``AgentConfig()`` with the dotted layers merged in order: the
+  preset's (task, method, preset), the widening, replay buffers sized for the run
+  (``buffer_sizes``, from the merged c and num_envs), the caller's ``overrides`` (dotted
+  paths, so a buffer size given there wins). Raises ValueError naming the field."""
+  overrides, widen = dict(overrides or {}), dict(widen or {})
+  layers, spec = preset_layers(preset, method, task)
+  wide = {}
+  if widen.get("envs_per_seed") is not None:
+    wide, spec = widen_layer(override(AgentConfig(), layers), spec, widen["envs_per_seed"],
+                             widen.get("grad_steps"))
+  spec = _resized(spec, dict(run or {}))
+  given = merge(layers, wide, overrides)
+  value = lambda path: given.get(path, get(AgentConfig(), path))
+  c, num_envs = value("c"), value("num_envs")
+  valid = all(isinstance(v, int) and v >= 1 for v in (c, num_envs))  # else the config says so
+  sized = buffer_sizes(spec.steps, c, num_envs) if valid else {}
+  config = _explained(override, overrides, AgentConfig(), merge(layers, wide, sized, overrides))
+  return config, spec
+
+
+def _resized(spec: RunSpec, run: dict) -> RunSpec:
+  unknown = set(run) - set(RUN_FIELDS)
+  if unknown:
+    raise ValueError(f"unknown run field(s) {sorted(unknown)}; valid: {', '.join(RUN_FIELDS)}")
+  changes = {k: v for k, v in run.items() if v is not None}
+  if "chunk" in changes and "checkpoint_every" not in changes:
+    changes["checkpoint_every"] = max(changes["chunk"], spec.checkpoint_every // changes["chunk"]
+                                      * changes["chunk"])
+  return dataclasses.replace(spec, **changes)
+
+
+def _explained(fn, flat: dict, *args):
+  """``fn(*args)``; a ValueError about one field that another, user-set one caused (``--c 7``
+  breaking ``middle_ppo_every``) also names the user's overrides it mentions."""
+  try:
+    return fn(*args)
+  except ValueError as e:
+    msg = str(e)
+    subject = msg.split(" ")[0]
+    mentioned = [n for n in flat if n != subject and (f" {n} " in msg or f" {n}:" in msg
+                                                      or f"{n} (" in msg)]
+    if mentioned:
+      given = ", ".join(f"--{n} {_show(flat[n])}" for n in mentioned)
+      msg += f" (from {given}: change {subject} too, or that flag)"
+    raise ValueError(msg) from None
+
+
+def _show(value) -> str:
+  return " ".join(map(str, value)) if isinstance(value, (list, tuple)) else str(value)

@@ -9,10 +9,11 @@
 
 A plan's configs are its variants, by name: a method (``ours``), or a method with sweep values
 (``ours+top.alpha=0,0.2,0.35``; ``variants`` keeps each one's method and values). Variants
-whose configs share a static key (``numbers.static_key``) are one group: one program of lanes.
+whose configs share a static key (``lanes.static_key``) are one group: one program of lanes.
 
-A new run is built from the presets (``methods``) and dotted overrides; a saved one is read
-back from its ``config.json`` (``config.config_from_dict``), not rebuilt: a preset default
+A new run is built from the presets (``methods.build_config``) and dotted overrides; a saved
+one is read back from its ``config.json`` (``folder.py``, ``config.config_from_dict``), not
+rebuilt: a preset default
 changed since the run started is a warning, and the run resumes, plots and renders as it
 was. A plan is data: its trainers are built on the run side (``programs.Programs``, which
 also checks the memory). Every value is checked before anything compiles (``check_plan``);
@@ -25,24 +26,18 @@ import dataclasses
 import datetime
 import itertools
 import os
-import platform
-import subprocess
-import sys
-from importlib import metadata
 
 import jax
 
 import envs
-from envs import ant_maze
+from envs.physics import PHYSICS
 from envs import contacts as contacts_lib
-from nonmono_jax.core import numbers, validation
+from nonmono_jax.core import lanes, validation
 from nonmono_jax.core.config import AgentConfig, config_from_dict, differences, flatten, get
-from nonmono_jax.core.config import merge, missing_fields, override
-from nonmono_jax.host import io, methods
+from nonmono_jax.core.config import missing_fields, override
+from nonmono_jax.host import folder, methods, provenance
 
-PACKAGES = ("jax", "jaxlib", "mujoco", "mujoco-mjx", "brax", "flax", "optax", "orbax-checkpoint",
-            "numpy", "nonmono-jax")
-RUN_FIELDS = tuple(f.name for f in dataclasses.fields(methods.RunSpec))
+RUN_FIELDS = methods.RUN_FIELDS
 
 
 @dataclasses.dataclass
@@ -78,7 +73,7 @@ class Plan:
       return [[name] for name in self.configs]
     by_key: dict = {}  # static key -> its variants (dicts keep the plan's order)
     for name, config in self.configs.items():
-      by_key.setdefault(numbers.static_key(config), []).append(name)
+      by_key.setdefault(lanes.static_key(config), []).append(name)
     return list(by_key.values())
 
 
@@ -90,7 +85,7 @@ def new_run(task: str, method_names, preset: str = "paper", out: str | None = No
             sweep: dict | None = None, physics: str | None = None,
             contacts: str | None = None) -> Plan:
   """The checked plan of a new run: the presets of ``method_names`` on ``task``, widened
-  (``methods.widen``), with the dotted ``overrides`` and the run size changes ``run``
+  (``methods.widen_layer``), with the dotted ``overrides`` and the run size changes ``run``
   (``steps``, ``seeds``, ``chunk``, ``checkpoint_every``, ``episode_length``); replay buffers
   sized for the run unless an override gives a size. ``sweep`` (dotted path -> list of
   values; several paths: their grid) makes each method one variant per value. ``physics``:
@@ -105,15 +100,16 @@ def new_run(task: str, method_names, preset: str = "paper", out: str | None = No
   validation.check_value("--seed", seed)
   widen = {"envs_per_seed": envs_per_seed, "grad_steps": grad_steps}
 
-  def configured(variants):
-    return {name: build_config(preset, v["method"], task, {**overrides, **v["overrides"]},
-                               run or {}, widen) for name, v in variants.items()}
+  def build(v):
+    return methods.build_config(preset, v["method"], task, {**overrides, **v["overrides"]}, run,
+                                widen)
 
-  variants = sweep_variants(method_names, sweep or {})
-  built = configured(variants)
-  if sweep:
-    variants = _read_only(variants, {name: c for name, (c, _) in built.items()}, sweep)
-    built = configured(variants)
+  points = sweep_variants(method_names, sweep or {})
+  built = {name: build(v) for name, v in points.items()}
+  variants = _read_only(points, {name: c for name, (c, _) in built.items()}, sweep or {})
+  # a variant that keeps every swept value is its grid point, built already; one that drops
+  # values its method does not read (HIRO in a sweep of top.alpha) is built without them
+  built = {name: built[name] if name in built else build(v) for name, v in variants.items()}
   spec = next(iter(built.values()))[1]
   configs = {name: c for name, (c, _) in built.items()}
   check_plan(task, spec, configs)
@@ -128,15 +124,18 @@ def new_run(task: str, method_names, preset: str = "paper", out: str | None = No
 
 
 def run_physics(task: str, physics: str | None) -> str | None:
-  """The physics a new run of ``task`` records: ``c`` or ``mjx`` for the ant (``auto`` and
-  None: ``envs.ant_maze.default_physics``), None for the point robot, which has no choice."""
+  """The physics a new run of ``task`` records: ``c`` or ``mjx`` for the ant, where ``auto``
+  and None are resolved, here alone: MuJoCo C on a CPU backend (10-25x MJX there), MJX on an
+  accelerator; None for the point robot, which has no choice."""
   if not envs.has_physics(task):
     if physics not in (None, "auto"):
       raise ValueError(f"--physics: {task} has no physics choice (the point robot is pure JAX)")
     return None
-  if physics not in (None, *ant_maze.PHYSICS):
-    raise ValueError(f"--physics must be one of {', '.join(ant_maze.PHYSICS)}, got {physics!r}")
-  return ant_maze.default_physics() if physics in (None, "auto") else physics
+  if physics not in (None, *PHYSICS):
+    raise ValueError(f"--physics must be one of {', '.join(PHYSICS)}, got {physics!r}")
+  if physics in (None, "auto"):
+    return "c" if jax.default_backend() == "cpu" else "mjx"
+  return physics
 
 
 def run_contacts(task: str, contacts: str | None) -> str | None:
@@ -158,9 +157,11 @@ def run_contacts(task: str, contacts: str | None) -> str | None:
 
 def make_env(task: str, episode_length: int, physics: str | None = None,
              contacts: str | None = None):
-  """``envs.make`` of a run's task: the ant with its ``physics`` (None: ``auto``) and
-  ``contacts`` (None: the env's default)."""
-  extra = {"physics": physics} if physics is not None else {}
+  """``envs.make`` of a run's task: the ant with its ``physics`` (``run_physics``: None and
+  ``auto`` resolved) and ``contacts`` (None: the env's default)."""
+  extra = {}
+  if envs.has_physics(task):
+    extra["physics"] = run_physics(task, physics)
   if contacts is not None:
     extra["contacts"] = contacts
   return envs.make(task, episode_length=episode_length, **extra)
@@ -207,60 +208,6 @@ def _named(value) -> str:
   return f"{value:g}" if isinstance(value, float) else str(value)
 
 
-def build_config(preset: str, method: str, task: str, overrides: dict, run: dict,
-                 widen: dict) -> tuple[AgentConfig, methods.RunSpec]:
-  """(config, run size) in one pass. The run size first: the preset's, widened
-  (``widen["envs_per_seed"]``, ``methods.widen_layer``), then ``run``'s changes. Then the
-  config, ``override`` applied once to ``AgentConfig()`` with the dotted layers merged in
-  order: the preset's (task, method, preset), the widening, replay buffers sized for the run
-  (``methods.buffer_sizes``, from the merged c and num_envs), the user's ``overrides`` (so a
-  buffer size given there wins)."""
-  layers, spec = methods.preset_layers(preset, method, task)
-  wide = {}
-  if widen.get("envs_per_seed") is not None:
-    wide, spec = methods.widen_layer(override(AgentConfig(), layers), spec,
-                                     widen["envs_per_seed"], widen.get("grad_steps"))
-  spec = _resized(spec, run)
-  given = merge(layers, wide, overrides)
-  value = lambda path: given.get(path, get(AgentConfig(), path))
-  c, num_envs = value("c"), value("num_envs")
-  valid = all(isinstance(v, int) and v >= 1 for v in (c, num_envs))  # else the config says so
-  sized = methods.buffer_sizes(spec.steps, c, num_envs) if valid else {}
-  config = _explained(override, overrides, AgentConfig(), merge(layers, wide, sized, overrides))
-  return config, spec
-
-
-def _resized(spec: methods.RunSpec, run: dict) -> methods.RunSpec:
-  unknown = set(run) - set(RUN_FIELDS)
-  if unknown:
-    raise ValueError(f"unknown run field(s) {sorted(unknown)}; valid: {', '.join(RUN_FIELDS)}")
-  changes = {k: v for k, v in run.items() if v is not None}
-  if "chunk" in changes and "checkpoint_every" not in changes:
-    changes["checkpoint_every"] = max(changes["chunk"], spec.checkpoint_every // changes["chunk"]
-                                      * changes["chunk"])
-  return dataclasses.replace(spec, **changes)
-
-
-def _explained(fn, flat: dict, *args):
-  """``fn(*args)``; a ValueError about one field that another, user-set one caused (``--c 7``
-  breaking ``middle_ppo_every``) also names the user's overrides it mentions."""
-  try:
-    return fn(*args)
-  except ValueError as e:
-    msg = str(e)
-    subject = msg.split(" ")[0]
-    mentioned = [n for n in flat if n != subject and (f" {n} " in msg or f" {n}:" in msg
-                                                      or f"{n} (" in msg)]
-    if mentioned:
-      given = ", ".join(f"--{n} {_show(flat[n])}" for n in mentioned)
-      msg += f" (from {given}: change {subject} too, or that flag)"
-    raise ValueError(msg) from None
-
-
-def _show(value) -> str:
-  return " ".join(map(str, value)) if isinstance(value, (list, tuple)) else str(value)
-
-
 # --- checks before anything compiles -------------------------------------------------------------
 
 def check_plan(task: str, spec: methods.RunSpec, configs: dict) -> None:
@@ -274,10 +221,9 @@ def check_plan(task: str, spec: methods.RunSpec, configs: dict) -> None:
   if spec.checkpoint_every % spec.chunk:
     raise ValueError(f"--checkpoint-every ({spec.checkpoint_every}) must be a multiple of "
                      f"--chunk ({spec.chunk})")
-  env = envs.make(task, episode_length=spec.episode_length)
   for method, config in configs.items():
     validation.check(config)
-    config.check_env(env)
+    config.check_env(spec.episode_length)
     validation.check_value(f"--steps x num_envs of {method}", spec.steps * config.num_envs)
   if spec.seeds % jax.device_count():
     across = (f": {jax.process_count()} processes x {jax.local_device_count()}"
@@ -286,108 +232,18 @@ def check_plan(task: str, spec: methods.RunSpec, configs: dict) -> None:
                      f"({jax.device_count()}{across}; see --cpu-devices)")
 
 
-# --- config.json ---------------------------------------------------------------------------------
-
-def to_json(plan: Plan) -> dict:
-  """``config.json``: the plan (every config in full), library versions, device, command."""
-  return {"task": plan.task, "preset": plan.preset, "seed": plan.seed,
-          "methods": list(plan.configs), "run": io.to_jsonable(plan.spec),
-          "overrides": io.to_jsonable(plan.overrides), "widen": plan.widen,
-          "configs": {m: io.to_jsonable(c) for m, c in plan.configs.items()},
-          "variants": io.to_jsonable(plan.variants), "grouped": plan.grouped,
-          "physics": plan.physics, "contacts": plan.contacts,
-          "versions": _versions(), "code": code_version(), "python": platform.python_version(),
-          "device": str(jax.devices()[0].device_kind), "platform": jax.default_backend(),
-          "device_count": jax.device_count(), "processes": jax.process_count(),
-          "host": host(), "command": " ".join(sys.argv)}
-
-
-# The instruction sets XLA:CPU's code (and its matmul kernels) may use: two CPUs that differ in
-# them round a run differently, so its rows reproduce only on the same kind of CPU.
-ISA_FLAGS = ("sse4_2", "avx", "avx2", "fma", "avx512f", "avx512_vnni", "avx512_bf16", "amx_tile")
-
-
-def host() -> dict:
-  """The machine type a run's rows reproduce on: CPU model (``/proc/cpuinfo``), its
-  instruction sets from ``ISA_FLAGS``, core count and ``XLA_FLAGS``."""
-  info = {}
-  try:
-    with open("/proc/cpuinfo") as f:
-      for line in f:
-        key, _, value = line.partition(":")
-        info.setdefault(key.strip(), value.strip())
-  except OSError:
-    pass
-  flags = set(info.get("flags", "").split())
-  return {"cpu": info.get("model name") or platform.processor() or platform.machine(),
-          "cpu_family": info.get("cpu family"), "cpu_model": info.get("model"),
-          "isa": [f for f in ISA_FLAGS if f in flags], "cores": os.cpu_count(),
-          "xla_flags": os.environ.get("XLA_FLAGS", "")}
-
-
-def host_differs(payload) -> str | None:
-  """What differs between the host that started the run in ``payload`` (``config.json``) and
-  this one, or None (also for runs from before hosts were recorded)."""
-  saved, now = payload.get("host"), host()
-  if not isinstance(saved, dict):
-    return None
-  changed = [f"{k} {saved.get(k)!r} (here {now[k]!r})" for k in now if saved.get(k) != now[k]
-             and k != "cores"]
-  return "; ".join(changed) or None
-
-
-def code_version() -> dict:
-  """The commit of the code that made the run, where it runs from a git checkout: ``{"commit":
-  sha, "dirty": uncommitted changes to tracked files}``; ``{}`` elsewhere (an installed wheel).
-  Later code may round a run differently: the commit is where it reproduces bit for bit."""
-  here = os.path.dirname(os.path.abspath(__file__))
-  git = lambda *args: subprocess.run(["git", "-C", here, *args], capture_output=True,
-                                     text=True, timeout=10)
-  try:
-    head = git("rev-parse", "HEAD")
-    if head.returncode:
-      return {}
-    dirty = git("status", "--porcelain", "--untracked-files=no").stdout.strip() != ""
-  except (OSError, subprocess.SubprocessError):
-    return {}
-  return {"commit": head.stdout.strip(), "dirty": dirty}
-
-
-def _versions() -> dict:
-  out = {}
-  for name in PACKAGES:
-    try:
-      out[name] = metadata.version(name)
-    except metadata.PackageNotFoundError:
-      out[name] = None
-  return out
-
-
-def read_config(out: str):
-  """``OUT/config.json`` as JSON; raises ValueError naming the file."""
-  path = os.path.join(out, "config.json")
-  if not os.path.isfile(path):
-    raise ValueError(f"{out}: no config.json there (not a run folder)")
-  try:
-    return io.read_json(path)
-  except (OSError, UnicodeDecodeError) as e:
-    raise ValueError(f"{path}: cannot be read ({e})") from None
-  except ValueError as e:
-    raise ValueError(f"{path}: not valid JSON ({e})") from None
-
-
 def load_run(out: str, task: str | None = None) -> Plan:
   """The run in folder ``out``, from its ``config.json`` (checked; ``task``: it must be one);
   ``plan.warnings`` says where it differs from today's presets. Raises ValueError naming
   ``OUT/config.json`` and what is wrong with it."""
-  return from_json(read_config(out), out, task)
+  return from_json(folder.read_config(out), out, task)
 
 
 def from_json(payload, out: str, task: str | None = None) -> Plan:
   """The plan ``config.json`` holds (see ``load_run``)."""
   path = os.path.join(out, "config.json")
   try:
-    _check_payload(payload)
+    folder.check_payload(payload)
     if task is not None and payload["task"] != task:
       raise ValueError(f"it is a {payload['task']} run, not {task}: resume it with python -m "
                        f"experiments.{payload['task'].lower()}")
@@ -400,10 +256,10 @@ def from_json(payload, out: str, task: str | None = None) -> Plan:
       configs[method], notes = _saved_config(payload, method, spec, overrides, widen)
       warnings += [f"{path}: {method} {note}" for note in notes]
     check_plan(payload["task"], spec, configs)
-    physics = saved_physics(payload)
-    contacts = saved_contacts(payload)
-    check_process_count(payload)
-    moved = host_differs(payload)
+    physics = folder.saved_physics(payload)
+    contacts = folder.saved_contacts(payload)
+    folder.check_process_count(payload)
+    moved = provenance.host_differs(payload)
     if moved:
       warnings.append(f"{path}: started on another machine type ({moved}): the rows after "
                       f"this resume are rounded as on this one, so the run as a whole reproduces on neither")
@@ -415,48 +271,6 @@ def from_json(payload, out: str, task: str | None = None) -> Plan:
               contacts=contacts)
 
 
-def check_process_count(payload) -> None:
-  """A run resumes with the process count it was made with (each process restores the
-  checkpoint shards of its own lanes)."""
-  made = payload.get("processes", 1)
-  if made != jax.process_count():
-    how = (f"--distributed with {made} processes" if made > 1 else "one process, without "
-           "--distributed")
-    raise ValueError(f"the run was made by {made} process(es), this is {jax.process_count()}: "
-                     f"resume it with {how}")
-
-
-def saved_physics(payload) -> str | None:
-  """The physics a saved run trained with: its ``physics`` entry; for an ant run from before
-  the choice, ``mjx`` (what it ran on)."""
-  task, physics = payload["task"], payload.get("physics")
-  if not envs.has_physics(task):
-    if physics is not None:
-      raise ValueError(f"physics must be null for {task}, got {physics!r}")
-    return None
-  if physics is None:
-    return "mjx"
-  if physics not in ("c", "mjx"):
-    raise ValueError(f"physics must be c or mjx, got {physics!r}")
-  return physics
-
-
-def saved_contacts(payload) -> str | None:
-  """The contact settings a saved run trained with: its ``contacts`` entry; for an ant run from
-  before the choice, ``mujoco3`` (what it ran on)."""
-  task, contacts = payload["task"], payload.get("contacts")
-  if not envs.has_physics(task):
-    if contacts is not None:
-      raise ValueError(f"contacts must be null for {task}, got {contacts!r}")
-    return None
-  if contacts is None:
-    return "mujoco3"
-  if contacts not in contacts_lib.CONTACTS:
-    raise ValueError(f"contacts must be one of {', '.join(contacts_lib.CONTACTS)}, got "
-                     f"{contacts!r}")
-  return contacts
-
-
 def _saved_config(payload, name: str, spec, overrides: dict, widen: dict):
   """(the saved config of the variant ``name``, notes on how it differs from today's
   preset)."""
@@ -466,7 +280,7 @@ def _saved_config(payload, name: str, spec, overrides: dict, widen: dict):
   variant = payload.get("variants", {}).get(name, {"method": name, "overrides": {}})
   overrides = {**overrides, **flatten(variant["overrides"])}
   try:
-    today, _ = build_config(payload["preset"], variant["method"], payload["task"], overrides,
+    today, _ = methods.build_config(payload["preset"], variant["method"], payload["task"], overrides,
                             dataclasses.asdict(spec), widen)
   except ValueError as e:
     today, notes = None, [f"cannot be rebuilt from today's presets ({e}); config.json is used"]
@@ -500,26 +314,3 @@ def _earlier_behaviour(saved, today: AgentConfig | None) -> AgentConfig:
   return override(today, {p: get(default, p) for p in missing_fields(saved, today)})
 
 
-def _check_payload(payload) -> None:
-  """The keys and types ``config.json`` must have, before anything is read from it."""
-  if not isinstance(payload, dict):
-    raise ValueError(f"expected a JSON object, got a {type(payload).__name__}")
-  for key, kind in (("task", str), ("preset", str), ("seed", int), ("methods", list),
-                    ("run", dict), ("overrides", dict), ("configs", dict)):
-    if key not in payload:
-      raise ValueError(f"the key {key!r} is missing")
-    if not isinstance(payload[key], kind):
-      raise ValueError(f"{key} must be a {kind.__name__}, got {payload[key]!r}")
-  if payload["task"] not in envs.NAMES:
-    raise ValueError(f"task {payload['task']!r} is not one of {', '.join(envs.NAMES)}")
-  if set(payload["run"]) != set(RUN_FIELDS):
-    raise ValueError(f"run must have exactly the keys {', '.join(sorted(RUN_FIELDS))}")
-  for key, value in payload["run"].items():
-    if not isinstance(value, int) or isinstance(value, bool):
-      raise ValueError(f"run.{key} must be an integer, got {value!r}")
-  if not isinstance(payload.get("widen", {}), dict):
-    raise ValueError("widen must be an object")
-  for name, variant in payload.get("variants", {}).items():
-    if not (isinstance(variant, dict) and isinstance(variant.get("method"), str)
-            and isinstance(variant.get("overrides"), dict)):
-      raise ValueError(f"variants.{name} must be an object with a method and its overrides")

@@ -29,11 +29,11 @@ import jax
 import numpy as np
 
 from nonmono_jax.core.config import differences
-from nonmono_jax.host import interrupts, io, processes, runlock
+from nonmono_jax.host import folder, interrupts, processes, rows as rows_lib, runlock
+from nonmono_jax.host.checkpoints import Checkpoints
 from nonmono_jax.host.interrupts import Terminated  # noqa: F401 - SIGTERM, as Ctrl-C
 from nonmono_jax.host.programs import Programs
 from nonmono_jax.host.plan import Plan, load_run, new_run  # noqa: F401 - the run's library entry points
-from nonmono_jax.host.plan import to_json
 
 
 class NonFinite(RuntimeError):
@@ -54,7 +54,7 @@ class ChunkResult:
   method: str
   step: int  # vector steps reached
   env_step: int  # env steps reached (step x num_envs)
-  rows: list  # metrics.csv's rows, one per seed (io.chunk_rows)
+  rows: list  # metrics.csv's rows, one per seed (rows.chunk_rows)
   metrics: dict  # every metric of the chunk: name -> per-seed array (train.reduce_chunk)
   states: object  # the train state after the chunk (donated by the next chunk: do not keep)
   seconds: float  # wall time of the chunk
@@ -81,7 +81,7 @@ class Clock:
     first = 0.0
     if path and os.path.exists(path):
       try:
-        first = float(io.read_json(path)["first_chunk_s"])
+        first = float(folder.read_json(path)["first_chunk_s"])
         if not (math.isfinite(first) and first >= 0):
           raise ValueError(first)
       except (OSError, ValueError, KeyError, TypeError):
@@ -93,7 +93,7 @@ class Clock:
     if seconds > self.first_chunk_s:
       self.first_chunk_s = seconds
       if self.path:
-        io.write_json(self.path, {"first_chunk_s": seconds})
+        folder.write_json(self.path, {"first_chunk_s": seconds})
 
   def allows(self, chunk_s: float | None) -> bool:
     if self.deadline is None:
@@ -128,7 +128,7 @@ def use_cpu_devices(n: int) -> None:
 def open_folder(plan: Plan, resume: bool = False):
   """Creates (a new run) and locks (``runlock``) the run folder for the block; a new run's
   must be empty and gets ``config.json``, a resumed one must be complete. Raises BadFolder,
-  runlock.Locked or io.MetricsError."""
+  runlock.Locked or rows.MetricsError."""
   if not processes.writer():  # process 0 of a multi-process run owns the folder
     processes.barrier("run folder open")
     yield plan
@@ -206,7 +206,7 @@ def _check_folder(plan: Plan, resume: bool) -> None:
     if set(os.listdir(plan.out)) - {runlock.NAME}:
       raise BadFolder(f"--out {plan.out} was filled by another process meanwhile")
     try:
-      io.write_json(os.path.join(plan.out, "config.json"), to_json(plan))
+      folder.write_json(os.path.join(plan.out, "config.json"), folder.to_json(plan))
     except OSError as e:
       raise BadFolder(f"{plan.out}/config.json: cannot be written ({e.strerror})") from None
     return
@@ -219,7 +219,7 @@ def _check_folder(plan: Plan, resume: bool) -> None:
     raise BadFolder(f"{metrics} is missing while checkpoints exist: the rows before them "
                     f"would be lost (put it back, or start a new run)")
   if os.path.exists(metrics):
-    io.good_lines(metrics)  # raises MetricsError naming the file
+    rows_lib.good_lines(metrics)  # raises MetricsError naming the file
 
 
 # --- training ------------------------------------------------------------------------------------
@@ -250,7 +250,7 @@ def run_group(plan: Plan, names, outputs=(), clock: Clock | None = None, log=pri
   spec, names = plan.spec, list(names)
   trainer = (programs or Programs(plan)).trainer(names)
   clock = clock or Clock()
-  ckpts = [io.Checkpoints(os.path.join(plan.out, "checkpoints", n), writer=processes.writer())
+  ckpts = [Checkpoints(os.path.join(plan.out, "checkpoints", n), writer=processes.writer())
            for n in names]
   if len(names) > 1:
     log(f"{', '.join(names)}: one program, {len(names)} variants x {spec.seeds} seeds = "
@@ -413,11 +413,13 @@ def _chunk(plan: Plan, names, trainer, states, t0: int, ckpts, timing: _Timing):
   timing.t_chunk = time.monotonic()
   states, metrics = trainer.chunk(states, t0)
   t_end = t0 + spec.chunk
-  metrics = processes.gather(metrics)  # waits for the chunk; every lane on every process
-  bad = io.first_non_finite(states, metrics)
+  # waits for the chunk; every lane on every process
+  summary = processes.gather(trainer.summarise(states, metrics))
+  metrics = processes.gather(metrics)
+  bad = first_non_finite(summary)
   what = "NaN or Inf in {}"
   if bad is None:
-    bad, what = first_unstable(metrics), "unstable physics (MuJoCo reset the simulation) in {}"
+    bad, what = first_unstable(summary), "unstable physics (MuJoCo reset the simulation) in {}"
   if bad is not None:
     variant, seed = divmod(int(bad[0]), spec.seeds)
     last = ckpts[variant].latest_step()
@@ -425,31 +427,38 @@ def _chunk(plan: Plan, names, trainer, states, t0: int, ckpts, timing: _Timing):
                     f"{t0}-{t_end}; " + (f"the last good checkpoint is step {last}"
                                          if last is not None else
                                          "no checkpoint was saved before it"))
-  counters = processes.gather(io.RowCounters.of(states))
   seconds = time.monotonic() - timing.t_chunk
   rate = _rate_after(timing, spec.chunk * trainer.num_lanes * num_envs)
   results = []
   for v, name in enumerate(names):
     lanes, lane_metrics = trainer.lanes(states, v), trainer.lanes(metrics, v)
-    rows = io.chunk_rows(plan.task, name, t_end * num_envs, trainer.lanes(counters, v),
-                         lane_metrics, spec.episode_length,
-                         t_end >= plan.configs[name].first_eval_steps)
+    rows = rows_lib.chunk_rows(plan.task, name, t_end * num_envs, trainer.lanes(summary, v),
+                               spec.episode_length, t_end >= plan.configs[name].first_eval_steps)
     results.append(ChunkResult(method=name, step=t_end, env_step=t_end * num_envs, rows=rows,
                                metrics=lane_metrics, states=lanes, seconds=seconds, rate=rate))
   return states, results
 
 
-UNSTABLE = {"physics/unstable": "training", "eval/unstable": "evaluation"}
+def first_non_finite(summary) -> tuple[int, str] | None:
+  """(lane, where) of the first NaN or Inf in a chunk's ``summary`` (gathered): a learner's
+  parameters (its level's name), else a learner's metric (``metric <name>``); or None."""
+  finite = {**summary.params_finite,
+            **{f"metric {name}": ok for name, ok in summary.metrics_finite.items()}}
+  for lane in range(np.shape(summary.reward)[0]):
+    for where, ok in finite.items():
+      if not ok[lane]:
+        return lane, where
+  return None
 
 
-def first_unstable(metrics: dict) -> tuple[int, str] | None:
+def first_unstable(summary) -> tuple[int, str] | None:
   """(lane, "training" or "evaluation") of the first lane whose env steps the physics found
   unstable in the chunk (``env.unstable``), or None."""
-  for name, where in UNSTABLE.items():
-    if name in metrics:
-      lanes = np.flatnonzero(np.asarray(metrics[name]) > 0)
-      if lanes.size:
-        return int(lanes[0]), where
+  for steps, where in ((summary.unstable_steps, "training"),
+                       (summary.unstable_evaluation, "evaluation")):
+    lanes = np.flatnonzero(np.asarray(steps) > 0)
+    if lanes.size:
+      return int(lanes[0]), where
   return None
 
 
@@ -461,7 +470,7 @@ def _rate_after(timing: _Timing, env_steps: int) -> float:
   return (timing.steps_done + env_steps) / max(time.perf_counter() - timing.t_start, 1e-9)
 
 
-def _stop_for_time(plan: Plan, method: str, ckpts: io.Checkpoints, t0: int, states) -> str:
+def _stop_for_time(plan: Plan, method: str, ckpts: Checkpoints, t0: int, states) -> str:
   """Checkpoints step ``t0`` if it is not yet; the time-limit message (saying what is saved)."""
   if t0 and ckpts.latest_step() != t0:
     ckpts.save(t0, states)

@@ -1,7 +1,7 @@
 """Where a run's chunk results go: each sink has ``begin`` (a method starts or resumes),
 ``write`` (one ``run.ChunkResult``) and ``close``; ``closing`` closes them all on any exit.
 
-    MetricsCsv(out)          OUT/metrics.csv: the paper's columns (``io.COLUMNS``), one row per
+    MetricsCsv(out)          OUT/metrics.csv: the paper's columns (``rows.COLUMNS``), one row per
                              method, seed and chunk
     JsonLines(out)           OUT/metrics.jsonl: those columns and every metric the program
                              computes (``train.reduce_chunk``'s keys), one line per seed and chunk
@@ -26,7 +26,7 @@ import uuid
 import numpy as np
 
 from nonmono_jax.core import hierarchy
-from nonmono_jax.host import io
+from nonmono_jax.host import folder, rows as rows_lib
 
 
 @contextlib.contextmanager
@@ -39,18 +39,18 @@ def closing(sinks):
 
 
 class MetricsCsv:
-  """``metrics.csv`` (``io.MetricsFile``): rows flushed to disk before the chunk's checkpoint.
+  """``metrics.csv`` (``rows.MetricsFile``): rows flushed to disk before the chunk's checkpoint.
   Given the run's ``plan``, a resume also checks that the rows up to the checkpoint are one
-  per seed and chunk (``io.check_rows``)."""
+  per seed and chunk (``rows.check_rows``)."""
 
   def __init__(self, out: str, plan=None):
-    self.file = io.MetricsFile(os.path.join(out, "metrics.csv"))
+    self.file = rows_lib.MetricsFile(os.path.join(out, "metrics.csv"))
     self.plan = plan
 
   def begin(self, method: str, env_step: int) -> None:
     if self.plan is not None and env_step:  # before anything is dropped: refused untouched
       spec, num_envs = self.plan.spec, self.plan.configs[method].num_envs
-      io.check_rows(self.file.path, method, env_step, spec.seeds, spec.chunk * num_envs)
+      rows_lib.check_rows(self.file.path, method, env_step, spec.seeds, spec.chunk * num_envs)
     self.file.truncate(method, env_step)
 
   def write(self, result) -> None:
@@ -81,7 +81,7 @@ class JsonLines:
       if line.endswith("\n") and not (record.get("method") == method
                                       and record.get("env_step", 0) > env_step):
         keep.append(line)
-    io.write_text(self.path, "".join(keep))
+    folder.write_text(self.path, "".join(keep))
 
   def write(self, result) -> None:
     with open(self.path, "a") as f:
@@ -108,7 +108,7 @@ def scalars(result) -> dict:
   numeric column and every metric (a vector metric per component, ``name/i``), and S_E per
   seed (``eval_success/seed<k>``)."""
   rows, out = result.rows, {}
-  for col in io.COLUMNS[4:]:
+  for col in rows_lib.COLUMNS[4:]:
     values = [r[col] for r in rows if r[col] != ""]
     if values:
       out[col] = sum(values) / len(values)
@@ -176,11 +176,11 @@ class WandB:
   def _id(self, method: str) -> str:
     """The W&B run id of ``method``, made once per run folder and kept there."""
     path = os.path.join(self.folder, "ids.json")
-    ids = io.read_json(path) if os.path.exists(path) else {}
+    ids = folder.read_json(path) if os.path.exists(path) else {}
     if method not in ids:
       ids[method] = uuid.uuid4().hex[:8]  # W&B's id format: 8 of [a-z0-9]
       os.makedirs(self.folder, exist_ok=True)
-      io.write_json(path, ids)
+      folder.write_json(path, ids)
     return ids[method]
 
   def begin(self, method: str, env_step: int) -> None:
@@ -188,7 +188,8 @@ class WandB:
       return
     plan = self.plan
     config = {"task": plan.task, "method": method, "preset": plan.preset, "seed": plan.seed,
-              "run": io.to_jsonable(plan.spec), "agent": io.to_jsonable(plan.configs[method])}
+              "run": folder.to_jsonable(plan.spec),
+              "agent": folder.to_jsonable(plan.configs[method])}
     self.runs[method] = self.wandb.init(
         project=self.project, id=self._id(method), resume="allow", dir=plan.out,
         name=f"{os.path.basename(os.path.abspath(plan.out))}/{method}",

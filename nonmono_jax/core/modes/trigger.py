@@ -1,4 +1,7 @@
-"""The informed mode switch of Ref:Uniform and Ref:PPO, as the paper's code runs it.
+"""The Ref methods' chooser (switch "homeostasis"): the informed mode switch of Ref:Uniform and
+Ref:PPO, as the paper's code runs it. Its options are ``config.HomeostasisConfig``
+(``AgentConfig.homeostasis``) and ``AgentConfig.explore_mode``; its starting phase is the Top's
+starting mode (``top.starting_steps``).
 
 Pislar et al.'s XU/XI-intra(100, informed, p*, X) at the Middle: two modes, exploit (TD3
 goals) and explore (uniform random or Middle PPO goals). The paper's Ref code decides at
@@ -44,6 +47,10 @@ import jax.numpy as jp
 from flax import struct
 
 from nonmono_jax.core import hierarchy, homeostasis
+from nonmono_jax.core import metrics as metrics_lib
+from nonmono_jax.core.config import AgentConfig
+from nonmono_jax.core.lanes import Numbers
+from nonmono_jax.core.modes import Decision
 
 
 @struct.dataclass
@@ -147,3 +154,60 @@ def make_informed_switch(config: homeostasis.HomeostasisConfig, explore_mode: in
 
   return InformedSwitch(config=config, explore_mode=explore_mode, init=init, restart=restart,
                         mode=mode, decide=decide_code if code else decide)
+
+
+# --- the chooser -------------------------------------------------------------------------------
+
+@dataclasses.dataclass(frozen=True, eq=False)  # identity: it holds arrays
+class TriggerChooser:
+  """Ref: the informed switch decides at every Middle decision; ``value(middle_params, obs)``
+  is the Middle's V (the trigger's signal)."""
+
+  switch: InformedSwitch
+  value: Callable[..., jax.Array]
+  num_envs: int
+  live_from: int  # warm-up + top.starting_steps (the explore mode until then)
+  starting_mode: int  # the explore mode
+  name = "homeostasis"
+
+  def init(self, keys, obs, middle_params) -> tuple[TriggerState, jax.Array]:
+    trigger = jax.vmap(self.switch.init)(self.value(middle_params, obs))
+    first = self.starting_mode if self.live_from > 0 else hierarchy.TD3
+    return trigger, jp.full((self.num_envs,), first, jp.int32)
+
+  def accumulate(self, state, reward, success):
+    return state
+
+  def decide(self, trigger: TriggerState, mode, d: Decision, keys, hp: Numbers):
+    """The trigger decides the next segment's mode (explore in the starting mode)."""
+    v, E, switch = self.value(d.middle, d.s_c), self.num_envs, self.switch
+
+    def starting(trigger):
+      return jax.vmap(switch.restart)(trigger, v), jp.zeros((E,), bool)
+
+    def deciding(trigger):
+      return jax.vmap(switch.decide, in_axes=(0, 0, 0, 0, None))(
+          trigger, v, d.reward, jax.random.split(keys.switch, E), hp.homeostasis.rho)
+
+    # The window of the first exploit period starts at s_{live_from}.
+    trigger, switched = jax.lax.cond(d.t + 1 <= self.live_from, starting, deciding, trigger)
+    mode = jp.where(d.t + 1 < self.live_from, self.starting_mode,
+                    jax.vmap(switch.mode)(trigger))
+    return (trigger, mode.astype(jp.int32),
+            {"switch/switches": metrics_lib.Metric.sum(switched.sum().astype(jp.float32))})
+
+  def update(self, state, t, live, s_e, hp: Numbers):
+    return state, {}
+
+
+def explore_index(config: AgentConfig) -> int:
+  """The mode index of ``config.explore_mode``: PPO or RANDOM."""
+  return hierarchy.PPO if config.explore_mode == "ppo" else hierarchy.RANDOM
+
+
+def make(config: AgentConfig, obs_size: int, target, value: Callable) -> TriggerChooser:
+  mode = explore_index(config)
+  return TriggerChooser(switch=make_informed_switch(config.homeostasis, mode, config.c),
+                        value=value, num_envs=config.num_envs,
+                        live_from=config.warmup_steps + config.top.starting_steps,
+                        starting_mode=mode)

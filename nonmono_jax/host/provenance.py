@@ -1,0 +1,89 @@
+"""Where a run was made: the machine type its rows reproduce on, the code's commit, the
+libraries' versions (``config.json`` records ``made()``).
+
+Rows reproduce bit for bit only on the same kind of CPU (XLA:CPU picks its code for the CPU it
+finds) and from the same commit (later code may round a run differently).
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+import subprocess
+import sys
+from importlib import metadata
+
+import jax
+
+PACKAGES = ("jax", "jaxlib", "mujoco", "mujoco-mjx", "brax", "flax", "optax", "orbax-checkpoint",
+            "numpy", "nonmono-jax")
+
+
+def made() -> dict:
+  """What ``config.json`` records of where and how a run was made."""
+  return {"versions": versions(), "code": code_version(), "python": platform.python_version(),
+          "device": str(jax.devices()[0].device_kind), "platform": jax.default_backend(),
+          "device_count": jax.device_count(), "processes": jax.process_count(),
+          "host": host(), "command": " ".join(sys.argv)}
+
+
+# The instruction sets XLA:CPU's code (and its matmul kernels) may use: two CPUs that differ in
+# them round a run differently, so its rows reproduce only on the same kind of CPU.
+ISA_FLAGS = ("sse4_2", "avx", "avx2", "fma", "avx512f", "avx512_vnni", "avx512_bf16", "amx_tile")
+
+
+def host() -> dict:
+  """The machine type a run's rows reproduce on: CPU model (``/proc/cpuinfo``), its
+  instruction sets from ``ISA_FLAGS``, core count and ``XLA_FLAGS``."""
+  info = {}
+  try:
+    with open("/proc/cpuinfo") as f:
+      for line in f:
+        key, _, value = line.partition(":")
+        info.setdefault(key.strip(), value.strip())
+  except OSError:
+    pass
+  flags = set(info.get("flags", "").split())
+  return {"cpu": info.get("model name") or platform.processor() or platform.machine(),
+          "cpu_family": info.get("cpu family"), "cpu_model": info.get("model"),
+          "isa": [f for f in ISA_FLAGS if f in flags], "cores": os.cpu_count(),
+          "xla_flags": os.environ.get("XLA_FLAGS", "")}
+
+
+def host_differs(payload) -> str | None:
+  """What differs between the host that started the run in ``payload`` (``config.json``) and
+  this one, or None (also for runs from before hosts were recorded)."""
+  saved, now = payload.get("host"), host()
+  if not isinstance(saved, dict):
+    return None
+  changed = [f"{k} {saved.get(k)!r} (here {now[k]!r})" for k in now if saved.get(k) != now[k]
+             and k != "cores"]
+  return "; ".join(changed) or None
+
+
+def code_version() -> dict:
+  """The commit of the code that made the run, where it runs from a git checkout: ``{"commit":
+  sha, "dirty": uncommitted changes to tracked files}``; ``{}`` elsewhere (an installed wheel).
+  Later code may round a run differently: the commit is where it reproduces bit for bit."""
+  here = os.path.dirname(os.path.abspath(__file__))
+  git = lambda *args: subprocess.run(["git", "-C", here, *args], capture_output=True,
+                                     text=True, timeout=10)
+  try:
+    head = git("rev-parse", "HEAD")
+    if head.returncode:
+      return {}
+    dirty = git("status", "--porcelain", "--untracked-files=no").stdout.strip() != ""
+  except (OSError, subprocess.SubprocessError):
+    return {}
+  return {"commit": head.stdout.strip(), "dirty": dirty}
+
+
+def versions() -> dict:
+  """The version of each of ``PACKAGES`` installed (None: not installed)."""
+  out = {}
+  for name in PACKAGES:
+    try:
+      out[name] = metadata.version(name)
+    except metadata.PackageNotFoundError:
+      out[name] = None
+  return out
