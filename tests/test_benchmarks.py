@@ -29,4 +29,35 @@ def test_a_compiled_chunk_is_the_trainers_chunk():
 def test_train_throughput_times_a_chunk():
   r = train_throughput.measure("PointPush", "hiro", seeds=1, num_envs=1, chunk=10, repeats=1,
                                time_eval=False)
-  assert r["env_steps_per_s"] > 0 and r["seeds"] == 1
+  assert r["env_steps_per_s"] > 0 and r["env_steps_per_cpu_s"] > 0 and r["seeds"] == 1
+
+
+def test_profile_phases_follow_the_gated_functions():
+  """A thunk is charged to the agent's phase that ran it: by its own op_name, else by the
+  computation it calls (a fused dot), else by the computation it sits in (a copy)."""
+  from benchmarks import profile_step
+  hlo = """HloModule m
+
+%fused_computation.1 (p: f32[2]) -> f32[2] {
+  %p = f32[2]{0} parameter(0)
+  ROOT %d = f32[2]{0} multiply(%p, %p), metadata={op_name="jit(local_chunk)/jit(low_update)/dot_general"}
+}
+
+%region_5.1 (a: f32[2]) -> f32[2] {
+  %a = f32[2]{0} parameter(0)
+  %m = f32[2]{0} add(%a, %a), metadata={op_name="jit(local_chunk)/jit(middle_update)/add"}
+  ROOT %copy.7 = f32[2]{0} copy(%m)
+}
+
+ENTRY %main (x: f32[2]) -> f32[2] {
+  %x = f32[2]{0} parameter(0)
+  %ynn_fusion.3 = f32[2]{0} fusion(%x), kind=kCustom, calls=%fused_computation.1
+  ROOT %copy.9 = f32[2]{0} copy(%ynn_fusion.3)
+}
+"""
+  phases = profile_step.phases(hlo)
+  assert phases["ynn_fusion.3"] == "low_update"
+  assert phases["copy.7"] == "middle_update"
+  assert phases["copy.9"] == "step"
+  runs = [{"a": [1, 50], "b": [2, 10]}, {"a": [1, 30]}]
+  assert profile_step.min_times(runs) == {"a": [1, 30], "b": [2, 10]}
