@@ -7,10 +7,12 @@ machine can give.
 runs ``python -m benchmarks.<name> <args>`` alternately on this checkout's code (its working
 tree, uncommitted changes included) and on ``--ref``'s (exported into a temporary folder, with
 this checkout's ``benchmarks/`` copied over it: one measurement, two versions of the code it
-measures), each round in the other order, and reads ``--metric`` (default ``env_steps_per_s``) from every row of each
-result file. Another process on the machine slows both sides of a round alike, and its drift
-over minutes cancels between the orders, so read the ratio per round (this / ref) and their
-median, not the absolute rates. Writes ``benchmarks/results/ab_<platform>_<date>.json``.
+measures), each round in the other order, and reads ``--metric`` (default
+``env_steps_per_s``) from every row of each result file. Another process on the machine
+slows both sides of a round alike, and its drift over minutes cancels between the orders, so
+read the ratio per round (this / ref) and their median, not the absolute rates; at a heavy
+load read ``env_steps_per_cpu_s`` (``train_throughput``), which preemption does not stretch.
+Writes ``benchmarks/results/ab_<platform>_<date>.json``.
 """
 
 from __future__ import annotations
@@ -32,25 +34,26 @@ def _run(root: str, name: str, args: list[str], out: str, metric: str) -> list[f
   """``metric`` of every row of one fresh run of benchmark ``name`` in ``root``."""
   env = {**os.environ, "PYTHONPATH": root}
   r = subprocess.run([sys.executable, "-m", f"benchmarks.{name}", *args, "--out", out],
-                     cwd=root, env=env, capture_output=True, text=True)
+                     check=False, cwd=root, env=env, capture_output=True, text=True)
   if r.returncode != 0:
     raise SystemExit(f"benchmarks.{name} in {root} failed:\n{r.stderr[-2000:]}")
   (path,) = glob.glob(os.path.join(out, f"{name}_*.json"))
-  rows = json.load(open(path)).get("results") or json.load(open(path)).get("rows")
-  return [row[metric] for row in rows]
+  with open(path) as f:
+    result = json.load(f)
+  return [row[metric] for row in result.get("results") or result["rows"]]
 
 
 def main(argv=None) -> None:
   argv = sys.argv[1:] if argv is None else argv
-  ours, sep, theirs = (argv, [], []) if "--" not in argv else (
-      argv[:argv.index("--")], "--", argv[argv.index("--") + 1:])
+  cut = argv.index("--") if "--" in argv else len(argv)
+  ours, theirs = argv[:cut], argv[cut + 1:]
   p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
   p.add_argument("--ref", required=True, help="the git revision to compare with (e.g. HEAD)")
   p.add_argument("--rounds", type=int, default=3)
   p.add_argument("--metric", default="env_steps_per_s")
   p.add_argument("--out", default=common.RESULTS)
   args = p.parse_args(ours)
-  if not sep or not theirs:
+  if not theirs:
     p.error("give the benchmark after --, e.g. -- train_throughput --seeds 1")
   name, bench_args = theirs[0], theirs[1:]
   rounds = []
@@ -70,7 +73,8 @@ def main(argv=None) -> None:
       rounds.append({"order": order, **got, "ratio": ratios})
       print(f"round {i + 1}: this {got['this']} ref {got['ref']} ratio "
             f"{[round(x, 3) for x in ratios]}", flush=True)
-  median = [statistics.median(r["ratio"][j] for r in rounds) for j in range(len(rounds[0]["ratio"]))]
+  median = [statistics.median(r["ratio"][j] for r in rounds)
+            for j in range(len(rounds[0]["ratio"]))]
   print("median ratio (this / ref) per row:", [round(x, 3) for x in median])
   common.write_result("ab", args.out, argv, ref=args.ref, benchmark=name, metric=args.metric,
                       rounds=rounds, median_ratio=median,
