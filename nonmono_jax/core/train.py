@@ -105,6 +105,15 @@ def reduce_chunk(metrics: dict) -> dict:
   return metrics_lib.reduce(metrics, axis=0)
 
 
+# XLA options the training chunk compiles with (a caller's ``compiler_options`` add to them
+# and win; only the chunk, which is always called at the top level, where jit takes options).
+# Region analysis lets XLA:CPU's copy insertion see that a weight updated in one ``cond``
+# branch and passed through in the other needs no copy: the largest weights of every TD3 were
+# copied once per step without it (the arithmetic is the same: docs/benchmarks.md). Other
+# backends ignore it.
+COMPILER_OPTIONS = {"xla_cpu_copy_insertion_use_region_analysis": True}
+
+
 def make_trainer(env, config: agent_lib.AgentConfig, num_seeds: int, chunk_steps: int,
                  devices: Sequence[jax.Device] | None = None,
                  compiler_options: Mapping[str, Any] | None = None) -> Trainer:
@@ -179,8 +188,9 @@ def _make(env, config, per_lane, num_seeds, chunk_steps, devices, compiler_optio
   # out_shardings: XLA would return zero-size leaves (an MJX model's empty mocap_pos, PointMaze's
   # blocks) replicated; kept split by lane, a chunk's output is its next input's sharding and the
   # chunk compiles once (not twice) and runs ahead-of-time compiled
-  lanes_chunk = jit(shard(local_chunk, (P("seeds"), P(), P("seeds"))), donate_argnums=0,
-                    out_shardings=seeds)
+  lanes_chunk = jax.jit(shard(local_chunk, (P("seeds"), P(), P("seeds"))), donate_argnums=0,
+                        out_shardings=seeds,
+                        compiler_options={**COMPILER_OPTIONS, **(compiler_options or {})})
   hp = jax.device_put(per_lane, seeds)
   chunk = lambda states, t0: lanes_chunk(states, t0, hp)
   lower = lambda states: lanes_chunk.lower(states, 0, hp)
