@@ -24,6 +24,7 @@ import jax
 
 import envs
 from envs import contacts as contacts_lib
+from envs import physics as physics_lib
 from nonmono_jax.host import methods, provenance
 
 
@@ -95,35 +96,32 @@ def check_process_count(payload) -> None:
                      f"resume it with {how}")
 
 
+def _saved_choice(payload, key: str, before: str, allowed) -> str | None:
+  """``payload[key]``, one of ``allowed``, for an ant task (null otherwise); ``before`` for an
+  ant run written before the choice existed (what it ran on)."""
+  task, value = payload["task"], payload.get(key)
+  if not envs.has_physics(task):
+    if value is not None:
+      raise ValueError(f"{key} must be null for {task}, got {value!r}")
+    return None
+  if value is None:
+    return before
+  if value not in allowed:
+    choices = " or ".join(allowed) if len(allowed) == 2 else f"one of {', '.join(allowed)}"
+    raise ValueError(f"{key} must be {choices}, got {value!r}")
+  return value
+
+
 def saved_physics(payload) -> str | None:
   """The physics a saved run trained with: its ``physics`` entry; for an ant run from before
   the choice, ``mjx`` (what it ran on)."""
-  task, physics = payload["task"], payload.get("physics")
-  if not envs.has_physics(task):
-    if physics is not None:
-      raise ValueError(f"physics must be null for {task}, got {physics!r}")
-    return None
-  if physics is None:
-    return "mjx"
-  if physics not in ("c", "mjx"):
-    raise ValueError(f"physics must be c or mjx, got {physics!r}")
-  return physics
+  return _saved_choice(payload, "physics", "mjx", physics_lib.ENGINES)
 
 
 def saved_contacts(payload) -> str | None:
   """The contact settings a saved run trained with: its ``contacts`` entry; for an ant run from
   before the choice, ``mujoco3`` (what it ran on)."""
-  task, contacts = payload["task"], payload.get("contacts")
-  if not envs.has_physics(task):
-    if contacts is not None:
-      raise ValueError(f"contacts must be null for {task}, got {contacts!r}")
-    return None
-  if contacts is None:
-    return "mujoco3"
-  if contacts not in contacts_lib.CONTACTS:
-    raise ValueError(f"contacts must be one of {', '.join(contacts_lib.CONTACTS)}, got "
-                     f"{contacts!r}")
-  return contacts
+  return _saved_choice(payload, "contacts", "mujoco3", contacts_lib.CONTACTS)
 
 
 def check_payload(payload) -> None:
