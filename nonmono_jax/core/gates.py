@@ -18,7 +18,7 @@ def gated(pred, fn, operand, reads=()):
   ``jax.eval_shape``. ``operand`` is what the branch writes, ``reads`` what it only reads:
   give the branch no more than it writes as ``operand``, for every leaf that passes through a
   ``cond`` unchanged is a buffer XLA copies, in the branch and again into the scan's carry
-  (whole train states through the gates made copies 9 % of an Ant step, 3 % since;
+  (whole train states through the gates made copies 9 % of an Ant step before;
   docs/benchmarks.md). ``fn`` is traced once: through ``jax.jit``, whose trace ``eval_shape``
   makes and the ``cond`` branch reuses (tracing twice doubled the Python tracing of the
   evaluation's env rollout, about a minute for the MJX ant); XLA inlines the call.
