@@ -20,6 +20,10 @@ Per task found in the folders' ``metrics.csv`` files:
 - ``<task>_ablation``: S_E of ours and its ablations (IQM with 95 % intervals), where the
   folders hold any of them.
 
+Folders of the Ant Push study of the paper's code beside ours (``results/antpush_reference``:
+``experiments.sidebyside.is_study``) draw that study's figure instead, on the paper's axis
+(``sidebyside.figures``; ``--table`` prints its readings, as ``experiments.claims`` does).
+
 Each is written as PNG and PDF into ``--out``, or by default into ``DIR/figures`` of the
 first folder that holds the task (so ``plot results/point*`` draws each task into its own
 results folder), with ``summary.md``: per task and method, final and best S_E per seed as IQM
@@ -442,8 +446,13 @@ def _band(ax, curve, label, color=None, bounds=(-np.inf, np.inf), **style):
 
 
 def _legend_below(fig, axes, ncol: int):
-  """One legend for the figure, below its panels, where it covers no curve."""
-  handles, labels = axes[0].get_legend_handles_labels()
+  """One legend for the figure, below its panels, where it covers no curve: the labelled lines
+  of ``axes``, each label once (a line missing from one panel is named from another)."""
+  entries = {}
+  for ax in axes:
+    for handle, text in zip(*ax.get_legend_handles_labels()):
+      entries.setdefault(text, handle)
+  handles, labels = list(entries.values()), list(entries)
   fig.legend(handles, labels, loc="lower center", ncol=max(min(ncol, len(labels)), 1),
              fontsize=8, frameon=False, bbox_to_anchor=(0.5, 0.0))
 
@@ -581,7 +590,12 @@ def figure_folders(dirs, out=None) -> dict:
 
 def plot(dirs, out=None, axis: str = "env") -> list[str]:
   """Every task's figures and a ``summary.md`` per figure folder (``figure_folders``), on the
-  env-step or the paper's axis (``load``); the files written."""
+  env-step or the paper's axis (``load``); the files written. The Ant Push study of the
+  paper's code beside ours (``sidebyside.is_study``): its figure instead, on the paper's axis,
+  into ``out`` or ``figures`` of the first folder (``sidebyside.figures``)."""
+  from experiments import sidebyside  # it imports this module
+  if sidebyside.is_study(dirs):
+    return sidebyside.figures(sidebyside.load(dirs), out or os.path.join(dirs[0], "figures"))
   rows = load(dirs, axis)
   written = []
   for folder, tasks in figure_folders(dirs, out).items():
@@ -670,7 +684,8 @@ def _draw(rows, out, xlabel=STEPS_LABEL) -> list[str]:
 
 def main(argv=None) -> int:
   p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-  p.add_argument("dirs", nargs="+", help="run folders (each with a metrics.csv)")
+  p.add_argument("dirs", nargs="+", help="run folders (each with a metrics.csv), or the Ant "
+                 "Push study of the paper's code beside ours (results/antpush_reference)")
   p.add_argument("--out", default=None,
                  help="figure folder for every task (default: DIR/figures of the first DIR "
                       "that holds the task)")
@@ -682,16 +697,24 @@ def main(argv=None) -> int:
   args = p.parse_args(argv)
   try:
     written = plot(args.dirs, args.out, args.axis)
-    rows = load(args.dirs, args.axis) if args.table else None
+    table = _table_text(args.dirs, args.axis) if args.table else None
   except ValueError as e:
     p.exit(2, f"{p.prog}: error: {e}\n")
   except OSError as e:  # the figure folder
     p.exit(2, f"{p.prog}: error: {e.filename}: {e.strerror}\n")
   for path in written:
     print(path)
-  if rows is not None:
-    print(tables(rows))
+  if table is not None:
+    print(table)
   return 0
+
+
+def _table_text(dirs, axis: str) -> str:
+  """What ``--table`` prints: ``tables`` of the folders' rows, or the study's readings."""
+  from experiments import sidebyside  # it imports this module
+  if sidebyside.is_study(dirs):
+    return sidebyside.markdown(sidebyside.readings(sidebyside.load(dirs))).rstrip("\n")
+  return tables(load(dirs, axis))
 
 
 if __name__ == "__main__":

@@ -29,6 +29,16 @@ R6. the modes: Middle decisions per mode from the end of warm-up to x = 1M (desc
 Intervals are 95 % stratified-bootstrap percentile intervals (``experiments.stats``), 2000
 replicates drawn with seed 0 unless ``--reps`` says otherwise; with 3 reference seeds every
 resample is cheap, and ``--reps exact`` gives them.
+
+The figure (``figures``), the same rows on one axis:
+
+    python -m experiments.plot results/antpush_reference      # into DIR/figures, or --out
+
+``AntPush_sidebyside`` (PNG and PDF): the paper's code, ours and HIRO (where its rows exist),
+each the mean over seeds with its pointwise 95 % band, on the paper's axis to 1M: (a) S_E at
+each evaluation, each seed thin, the paper's headline 0.6 dashed; (b) the final distance to
+the target at each evaluation; (c) the Low's reward per env step; (d) the Low's progress per
+segment (where logged). A run still going is drawn as far as it got.
 """
 
 from __future__ import annotations
@@ -255,3 +265,96 @@ def markdown(r: dict) -> str:
 def is_study(dirs) -> bool:
   """Whether ``dirs`` hold reference runs (this study) rather than only run folders."""
   return any(reference_folders(d) for d in dirs)
+
+
+# The figure (``figures``)
+FIGURE = f"{TASK}_sidebyside"
+FIGURE_METHODS = (REFERENCE, "ours", "hiro")  # drawn in this order, those with rows
+FIGURE_NAMES = {REFERENCE: "The paper's code"}  # the others: plot.label
+COLORS = {REFERENCE: "C3", "ours": "C0", "hiro": "C1"}
+# A panel: (its column, title, y label, the bounds its band is clipped to)
+PANELS = (("eval_success", f"(a) S_E, the {plot.SUCCESS} at each evaluation (thin: each seed)",
+           plot.SUCCESS, (0, 1)),
+          ("eval_distance", "(b) final distance to the target at each evaluation",
+           "distance to the target", (0, np.inf)),
+          ("low_reward", "(c) the Low's reward per env step", "reward per env step",
+           (-np.inf, np.inf)),
+          ("low_subgoal_progress", "(d) the Low's progress per segment, ||g_0|| - ||g_c||",
+           "progress per segment", (-np.inf, np.inf)))
+
+
+def figure_label(rows, method) -> str:
+  """A method's name in the figure's legend with its seeds: ``The paper's code (3 seeds)``."""
+  seeds = {r["seed"] for r in rows if r["method"] == method}
+  return f"{FIGURE_NAMES.get(method, plot.label(method))} ({plot.seeds_text(len(seeds))})"
+
+
+def panel_curves(rows, column, reps=stats.REPS) -> dict:
+  """{method: (steps, mean, lower, upper, seeds)} of ``column`` for each of FIGURE_METHODS
+  with a value of it: the mean over seeds and its pointwise 95 % stratified-bootstrap interval
+  at the steps where every seed has a value (``plot.curves``; where one seed has got further
+  than the others, its thin line in (a) shows the rest)."""
+  out = {}
+  for m in FIGURE_METHODS:
+    curve = plot.curves(rows, TASK, m, column, reps)
+    if len(curve[0]):
+      out[m] = curve
+  return out
+
+
+def seed_lines(rows, method, column) -> dict:
+  """{seed: (steps, values)}: ``column`` of each seed of ``method`` at each of its own steps
+  with a value, in step order."""
+  points = defaultdict(list)
+  for r in rows:
+    if r["method"] == method and r.get(column, "") != "":
+      points[r["seed"]].append((int(r["env_step"]), float(r[column])))
+  return {s: tuple(np.array(v) for v in zip(*sorted(points[s])))
+          for s in sorted(points, key=plot._seed_order)}
+
+
+def _panel(ax, rows, panel, labels, reps) -> bool:
+  """One panel: each method's mean with its band (a method without the column left out);
+  whether any was drawn."""
+  column, title, ylabel, bounds = panel
+  drawn = panel_curves(rows, column, reps)
+  for m, curve in drawn.items():
+    plot._band(ax, curve, labels[m], COLORS[m], bounds=bounds)
+  ax.set(title=title, xlabel=plot.STEPS_LABEL, ylabel=ylabel, xlim=(0, AT))
+  ax.grid(alpha=0.3)
+  if not drawn:
+    ax.text(0.5, 0.5, "no rows yet", transform=ax.transAxes, ha="center", color="0.4")
+  return bool(drawn)
+
+
+def _success_extras(ax, rows, labels):
+  """Panel (a)'s seeds, thin under the means, and the paper's headline, dashed."""
+  for m in labels:
+    for steps, values in seed_lines(rows, m, "eval_success").values():
+      ax.plot(steps, values, color=COLORS[m], lw=0.6, alpha=0.5, zorder=1)
+  ax.axhline(PASS, color="0.3", ls="--", lw=1, label=f"the paper's headline, S_E {PASS}")
+  ax.set_ylim(-0.05, 1.05)
+
+
+def figures(rows, out, reps=stats.REPS) -> list[str]:
+  """The study's figure ``FIGURE`` (PNG and PDF) from its rows (``load``) into folder ``out``:
+  the reference, ours and HIRO (those with rows) on the paper's axis to x = AT, one panel per
+  ``PANELS`` entry; (d) is left out while no method logs its column. The files written."""
+  import matplotlib
+  matplotlib.use("Agg")
+  import matplotlib.pyplot as plt
+
+  rows = [r for r in rows if int(r["env_step"]) <= AT]
+  labels = {m: figure_label(rows, m) for m in FIGURE_METHODS
+            if any(r["method"] == m for r in rows)}
+  os.makedirs(out, exist_ok=True)
+  fig, axes = plt.subplots(2, 2, figsize=(11, 8))
+  drawn = [_panel(ax, rows, panel, labels, reps) for ax, panel in zip(axes.flat, PANELS)]
+  _success_extras(axes[0][0], rows, labels)
+  if not drawn[3]:
+    axes[1][1].remove()
+  fig.suptitle(f"{TASK}: the paper's code and ours, mean over seeds, {plot.INTERVAL}")
+  plot._legend_below(fig, fig.axes, 4)
+  paths = plot._finish(fig, out, FIGURE, plot.AXES["paper"])
+  plt.close(fig)
+  return paths

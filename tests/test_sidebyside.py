@@ -8,7 +8,7 @@ import os
 import numpy as np
 import pytest
 
-from experiments import claims, sidebyside
+from experiments import claims, plot, sidebyside
 from nonmono_jax.host import rows as rows_lib
 
 WARMUP = 100_000
@@ -57,10 +57,16 @@ def _ramp(level, start=500_000):
   return lambda x: round(level * min(max(x - start, 0) / 300_000, 1.0), 3)
 
 
-def _study(tmp_path, ref_levels, our_levels, until=1_000_000):
+def _write_study(tmp_path, ref_levels, our_levels, until=1_000_000, ref_until=None):
+  """The study's folders under ``tmp_path``: a reference folder per level, ours' seeds."""
   for i, level in enumerate(ref_levels):
-    _reference(str(tmp_path / "reference" / f"seed{i}"), i, _ramp(level), until=until)
+    _reference(str(tmp_path / "reference" / f"seed{i}"), i, _ramp(level),
+               until=ref_until or until)
   _ours(str(tmp_path / "ours"), [_ramp(level) for level in our_levels], until=until)
+
+
+def _study(tmp_path, ref_levels, our_levels, until=1_000_000):
+  _write_study(tmp_path, ref_levels, our_levels, until)
   return sidebyside.readings(sidebyside.load([str(tmp_path)]), reps="exact")
 
 
@@ -120,3 +126,60 @@ def test_equivalence_readings():
   assert sidebyside.equivalence((-0.3, -0.4, -0.1)) == "ours below"
   assert sidebyside.equivalence((0.0, -0.3, 0.4)) == "cannot be told apart"
   assert sidebyside.equivalence((0.5, 0.3, 0.6)) == "ours above by more than 0.2"
+
+
+FIGURE_FILES = [f"{sidebyside.FIGURE}.pdf", f"{sidebyside.FIGURE}.png"]  # sorted
+
+
+def test_plot_draws_the_study_figure_with_hiro(tmp_path, capsys):
+  """``experiments.plot`` on the study's folder: its figure, into DIR/figures by default
+  (``--table``: its readings)."""
+  _write_study(tmp_path, [0.8, 0.75, 0.85], [0.8, 0.7, 0.9, 0.75, 0.85, 0.8])
+  _ours(str(tmp_path / "hiro"), [_ramp(0.3)] * 3, method="hiro")
+  assert plot.main([str(tmp_path)]) == 0
+  assert sorted(os.listdir(tmp_path / "figures")) == FIGURE_FILES
+  printed = sorted(capsys.readouterr().out.split())
+  assert printed == [str(tmp_path / "figures" / f) for f in FIGURE_FILES]
+  rows = sidebyside.load([str(tmp_path)])
+  assert sidebyside.figure_label(rows, "hiro") == "HIRO (3 seeds)"
+  assert sidebyside.figure_label(rows, "reference") == "The paper's code (3 seeds)"
+  assert "the paper's code (reference) and ours" in plot._table_text([str(tmp_path)], "env")
+
+
+def test_figure_of_a_study_still_going_without_hiro(tmp_path):
+  """The reference behind ours (and its seeds apart): each drawn as far as it got."""
+  _write_study(tmp_path, [0.8, 0.8], [0.8] * 6, until=600_000, ref_until=300_000)
+  _reference(str(tmp_path / "reference" / "seed2"), 2, _ramp(0.8), until=100_000)
+  rows = sidebyside.load([str(tmp_path)])
+  paths = sidebyside.figures(rows, str(tmp_path / "out"), reps=20)
+  assert sorted(os.path.basename(p) for p in paths) == FIGURE_FILES
+  curves = sidebyside.panel_curves(rows, "eval_success", reps=20)
+  assert set(curves) == {"reference", "ours"}
+  assert curves["reference"][0][-1] == 100_000 and curves["ours"][0][-1] == 600_000
+  assert sidebyside.seed_lines(rows, "reference", "eval_success")["0"][0][-1] == 300_000
+
+
+def test_figure_leaves_out_a_method_without_a_column(tmp_path):
+  """No HIRO; the reference without the Low's progress: panel (d) draws ours alone, and
+  without it anywhere panel (d) goes."""
+  _write_study(tmp_path, [0.8, 0.75, 0.85], [0.8] * 6)
+  rows = [{k: v for k, v in r.items() if not (k == "low_subgoal_progress"
+                                               and r["method"] == "reference")}
+          for r in sidebyside.load([str(tmp_path)])]
+  assert set(sidebyside.panel_curves(rows, "low_subgoal_progress", reps=20)) == {"ours"}
+  assert len(sidebyside.figures(rows, str(tmp_path / "a"), reps=20)) == 2
+  rows = [{k: v for k, v in r.items() if k != "low_subgoal_progress"} for r in rows]
+  assert sidebyside.panel_curves(rows, "low_subgoal_progress", reps=20) == {}
+  assert len(sidebyside.figures(rows, str(tmp_path / "b"), reps=20)) == 2
+
+
+def test_the_success_panel_is_the_mean_of_the_seeds(tmp_path):
+  """Panel (a)'s reference curve at an evaluation is the mean of its seeds' S_E there, its
+  band around it within [0, 1]."""
+  _write_study(tmp_path, [0.8, 0.5, 0.2], [0.8] * 6)
+  rows = sidebyside.load([str(tmp_path)])
+  steps, point, lower, upper, seeds = sidebyside.panel_curves(rows, "eval_success",
+                                                              reps=50)["reference"]
+  i = list(steps).index(700_000)  # the ramps' 2/3: 0.533, 0.333, 0.133
+  assert seeds == 3 and point[i] == pytest.approx((0.533 + 0.333 + 0.133) / 3)
+  assert lower[i] <= point[i] <= upper[i] and len(steps) == 100
