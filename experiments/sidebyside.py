@@ -34,7 +34,7 @@ The figure (``figures``), the same rows on one axis:
 
     python -m experiments.plot results/antpush_reference      # into DIR/figures, or --out
 
-``AntPush_sidebyside`` (PNG and PDF): the paper's code, ours and HIRO (where its rows exist),
+``antpush_sidebyside`` (PNG and PDF): the paper's code, ours and HIRO (where its rows exist),
 each the mean over seeds with its pointwise 95 % band, on the paper's axis to 1M: (a) S_E at
 each evaluation, each seed thin, the paper's headline 0.6 dashed; (b) the final distance to
 the target at each evaluation; (c) the Low's reward per env step; (d) the Low's progress per
@@ -268,7 +268,7 @@ def is_study(dirs) -> bool:
 
 
 # The figure (``figures``)
-FIGURE = f"{TASK}_sidebyside"
+FIGURE = f"{TASK.lower()}_sidebyside"  # as plot.py names its figures
 FIGURE_METHODS = (REFERENCE, "ours", "hiro")  # drawn in this order, those with rows
 FIGURE_NAMES = {REFERENCE: "The paper's code"}  # the others: plot.label
 COLORS = {REFERENCE: "C3", "ours": "C0", "hiro": "C1"}
