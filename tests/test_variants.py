@@ -7,7 +7,6 @@ import jax
 import numpy as np
 import pytest
 
-import envs
 from nonmono_jax.core import lanes, train
 from nonmono_jax.core.config import AgentConfig
 from nonmono_jax.core.lanes import check_group
@@ -39,7 +38,7 @@ ABLATION = {"low.lr_critic": 3e-3, "middle.tau": 0.01, "top.ppo.clip": 0.3}
 
 @pytest.fixture(scope="module")
 def runs():
-  env = envs.make("PointMaze", episode_length=EPISODE)
+  env = plan_lib.make_env("PointMaze", EPISODE)
   ablation = tiny("ours-no-mods", ABLATION)
   group = train.make_group_trainer(env, [tiny("ours"), ablation], SEEDS, CHUNK)
   alone = train.make_trainer(env, ablation, SEEDS, CHUNK)
@@ -59,9 +58,30 @@ def test_a_lane_of_a_group_is_that_variant_run_alone_bit_for_bit(runs):
   jax.tree.map(np.testing.assert_array_equal, group.lanes(g_states, 1), a_states)
 
 
+def test_a_trainer_built_again_shares_its_programs_and_keeps_its_numbers(runs):
+  """A trainer built again for one env and static key (a notebook's cell run again, the next
+  run of a session) reuses the traced programs (``train._programs``); its lanes' numbers stay
+  its own: the ablation, sharing ours' program after ours ran, computes the bits it computes
+  alone."""
+  _, _, (a_states, a_chunks) = runs
+  env = plan_lib.make_env("PointMaze", EPISODE)
+  assert plan_lib.make_env("PointMaze", EPISODE) is env
+  ours = train.make_trainer(env, tiny("ours"), SEEDS, CHUNK)
+  ablation = train.make_trainer(env, tiny("ours-no-mods", ABLATION), SEEDS, CHUNK)
+  assert ablation.chunk_program is ours.chunk_program and ablation.init is ours.init
+  other = train.make_trainer(env, tiny("ours"), 2 * SEEDS, CHUNK)
+  assert other.chunk_program is not ours.chunk_program
+  _run(ours)
+  states, chunks = _run(ablation)
+  for c, a in zip(chunks, a_chunks):
+    for name in a:
+      np.testing.assert_array_equal(c[name], a[name], err_msg=name)
+  jax.tree.map(np.testing.assert_array_equal, states, a_states)
+
+
 def test_gates_stay_branches_with_batched_numbers():
   """Each lane's numbers are batched, the step counter is not: the gates stay ``cond``s."""
-  env = envs.make("PointMaze", episode_length=EPISODE)
+  env = plan_lib.make_env("PointMaze", EPISODE)
   group = train.make_group_trainer(env, [tiny("ours"), tiny("ours-no-mods")], SEEDS, CHUNK)
   states = jax.eval_shape(group.init, jax.random.PRNGKey(0))
   hp = jax.tree.map(np.asarray, lanes.stack([tiny("ours")] * group.num_lanes))

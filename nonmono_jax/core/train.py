@@ -151,13 +151,53 @@ def _make(env, config, per_lane, num_seeds, chunk_steps, devices, compiler_optio
   for name, v in (("num_seeds", num_seeds), ("chunk_steps", chunk_steps)):
     if v < 1:
       raise ValueError(f"{name} must be >= 1, got {v}")
-  devices = list(devices or jax.devices())
-  n_lanes = variants * num_seeds
-  if n_lanes % len(devices):
+  devices = tuple(devices or jax.devices())
+  if variants * num_seeds % len(devices):
     raise ValueError(f"variants x num_seeds ({variants} x {num_seeds}) must be a multiple of "
                      f"the device count ({len(devices)})")
-  agent = agent_lib.make_agent(env, config)
-  mesh = Mesh(devices, ("seeds",))
+  options = tuple(sorted((compiler_options or {}).items()))
+  progs = _programs(env, config, num_seeds, variants, chunk_steps, devices, options)
+  hp = jax.device_put(per_lane, progs.seeds)
+  chunk = lambda states, t0: progs.chunk(states, t0, hp)
+  lower = lambda states: progs.chunk.lower(states, 0, hp)
+
+  def program_bytes():
+    return compiled_bytes(lower(jax.eval_shape(progs.init, jax.random.PRNGKey(0))).compile())
+
+  def compile_for(states, t0):
+    progs.chunk.lower(states, t0, hp).compile()
+  return Trainer(
+      agent=progs.agent, num_seeds=num_seeds, chunk_steps=chunk_steps, mesh=progs.mesh,
+      init=progs.init, chunk=chunk, evaluate=progs.evaluate, variants=variants,
+      chunk_program=progs.chunk, hp=hp, program_bytes=program_bytes, compile=compile_for)
+
+
+@dataclasses.dataclass(frozen=True)
+class _Programs:
+  """The jitted functions of one program shape, shared by every trainer of that shape (their
+  lanes' ``Numbers`` are arguments): the chunk takes ``(states, t0, hp)``."""
+  agent: agent_lib.Agent
+  mesh: Mesh
+  seeds: NamedSharding  # the lane axis split over the mesh
+  init: Callable
+  chunk: Callable
+  evaluate: Callable
+
+
+# Programs kept per process (``_programs``): a run builds one per group of variants; a notebook
+# or a test session that builds the same trainer again reuses its traced and compiled programs
+# instead of tracing the agent again (seconds each: the persistent cache saves only XLA's part).
+PROGRAMS_KEPT = 8
+
+
+@functools.lru_cache(maxsize=PROGRAMS_KEPT)
+def _programs(env, key, num_seeds: int, variants: int, chunk_steps: int, devices: tuple,
+              options: tuple) -> _Programs:
+  """Jitted init, chunk and evaluate of ``env`` (by identity: ``plan.make_env`` keeps one per
+  task and settings) and the static key ``key`` for ``variants`` x ``num_seeds`` lanes."""
+  compiler_options = dict(options) or None
+  agent = agent_lib.make_agent(env, key)
+  mesh = Mesh(list(devices), ("seeds",))
   seeds = NamedSharding(mesh, P("seeds"))
 
   def local_chunk(states, t0, hp):
@@ -182,27 +222,13 @@ def _make(env, config, per_lane, num_seeds, chunk_steps, devices, compiler_optio
   sharded_init = jit(shard(jax.vmap(agent.init), (P("seeds"),)), out_shardings=seeds)
   keys_of = jit(lane_keys, out_shardings=seeds)
 
-  def init(key):
-    return sharded_init(keys_of(key))
-
   # out_shardings: XLA would return zero-size leaves (an MJX model's empty mocap_pos, PointMaze's
   # blocks) replicated; kept split by lane, a chunk's output is its next input's sharding and the
   # chunk compiles once (not twice) and runs ahead-of-time compiled
   lanes_chunk = jax.jit(shard(local_chunk, (P("seeds"), P(), P("seeds"))), donate_argnums=0,
                         out_shardings=seeds,
                         compiler_options={**COMPILER_OPTIONS, **(compiler_options or {})})
-  hp = jax.device_put(per_lane, seeds)
-  chunk = lambda states, t0: lanes_chunk(states, t0, hp)
-  lower = lambda states: lanes_chunk.lower(states, 0, hp)
-
-  def program_bytes():
-    return compiled_bytes(lower(jax.eval_shape(init, jax.random.PRNGKey(0))).compile())
-
-  def compile_for(states, t0):
-    lanes_chunk.lower(states, t0, hp).compile()
-  return Trainer(
-      agent=agent, num_seeds=num_seeds, chunk_steps=chunk_steps, mesh=mesh,
-      init=init, chunk=chunk,
-      evaluate=_with_step(jit(shard(local_evaluate, (P("seeds"), P(), P())))),
-      variants=variants,
-      chunk_program=lanes_chunk, hp=hp, program_bytes=program_bytes, compile=compile_for)
+  return _Programs(
+      agent=agent, mesh=mesh, seeds=seeds, init=lambda key: sharded_init(keys_of(key)),
+      chunk=lanes_chunk,
+      evaluate=_with_step(jit(shard(local_evaluate, (P("seeds"), P(), P())))))

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import dataclasses
 import datetime
+import functools
 import itertools
 import os
 
@@ -155,10 +156,13 @@ def run_contacts(task: str, contacts: str | None) -> str | None:
   return contacts
 
 
+@functools.lru_cache(maxsize=8)
 def make_env(task: str, episode_length: int, physics: str | None = None,
              contacts: str | None = None):
   """``envs.make`` of a run's task: the ant with its ``physics`` (``run_physics``: None and
-  ``auto`` resolved) and ``contacts`` (None: the env's default)."""
+  ``auto`` resolved) and ``contacts`` (None: the env's default). One env per process for each
+  choice (an env is pure functions; its C physics keeps no state between calls), so that a
+  trainer built again for it reuses its programs (``train._programs``)."""
   extra = {}
   if envs.has_physics(task):
     extra["physics"] = run_physics(task, physics)
