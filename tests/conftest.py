@@ -2,8 +2,9 @@
 
 XLA compile time dominates this suite on a CPU (an MJX ant maze program takes tens of
 seconds; the ant on MuJoCo C, the default physics on a CPU, about one), so every program is
-compiled once per session (the fixtures below) and the compiled executables are cached on disk across sessions (``.jax_cache/`` or
-``$JAX_COMPILATION_CACHE_DIR``).
+compiled once per session (the fixtures below; a trainer built again for the same env and
+static config reuses its traced programs, ``train._programs``) and the compiled executables
+are cached on disk across sessions (``.jax_cache/`` or ``$JAX_COMPILATION_CACHE_DIR``).
 """
 
 import os
@@ -25,7 +26,10 @@ import pytest  # noqa: E402
 from tests_support import CACHE_DIR  # noqa: E402
 
 jax.config.update("jax_compilation_cache_dir", CACHE_DIR)
-jax.config.update("jax_persistent_cache_min_compile_time_secs", 1.0)
+# Every program, however quick to compile (the suite has hundreds under a second), so that a
+# warm session compiles nothing. The folder only grows (about 100 MB for the suite; code changes
+# add entries): delete it when it is large. (JAX's size limit needs the filelock package.)
+jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
 jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
 
 import envs  # noqa: E402

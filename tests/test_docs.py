@@ -7,7 +7,7 @@ A block is marked on the line just above its fence:
     <!-- run: OLD => NEW ;; OLD2 => NEW2 -->  executed with these replacements (each OLD must be
                                           in the block: a doc edit that drops it fails here)
     <!-- run slow: ... -->                the same, in the slow tier (it compiles the ant or
-                                          several programs)
+                                          several programs; every bash block is in it too)
     <!-- not run: why -->                 a GPU, a cluster, the upstream code, a template, ...
 
 Each block runs in its own process, in an empty temporary folder (``results/`` linked in, to
@@ -68,7 +68,10 @@ def blocks(path: str) -> list[Block]:
 
 
 ALL = [b for path in DOCS for b in blocks(path)]
-RUN = [pytest.param(b, id=b.name, marks=[pytest.mark.slow] if b.mark["slow"] else [])
+# A bash block runs the CLI in processes of its own (tens of seconds each, with nothing of the
+# session's programs to reuse): the slow tier runs it, as every test that starts processes.
+RUN = [pytest.param(b, id=b.name,
+                    marks=[pytest.mark.slow] if b.mark["slow"] or b.lang == "bash" else [])
        for b in ALL if b.mark is not None and b.mark["run"]]
 
 
