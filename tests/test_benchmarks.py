@@ -61,3 +61,18 @@ ENTRY %main (x: f32[2]) -> f32[2] {
   assert phases["copy.9"] == "step"
   runs = [{"a": [1, 50], "b": [2, 10]}, {"a": [1, 30]}]
   assert profile_step.min_times(runs) == {"a": [1, 30], "b": [2, 10]}
+
+
+def test_compiler_options_compares_bits_and_times_each_candidate(tmp_path):
+  from benchmarks import compiler_options
+  assert compiler_options.parse_option("a=512") == ("a", 512)
+  assert compiler_options.parse_option("b=False") == ("b", False)
+  compiler_options.main(["--env", "PointPush", "--method", "hiro", "--chunk", "10", "--rounds",
+                         "2", "--try", "xla_cpu_multi_thread_eigen=false", "--out",
+                         str(tmp_path)])
+  (path,) = tmp_path.glob("compiler_options_*.json")
+  import json
+  (row,) = json.load(open(path))["results"]
+  assert row["options"] == {"xla_cpu_multi_thread_eigen": False}
+  assert row["same_bits"] is True  # Eigen's threads split a dot's rows, not its sums
+  assert len(row["rounds_cpu"]) == 2 and row["speedup_wall"] > 0
