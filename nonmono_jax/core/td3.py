@@ -136,7 +136,10 @@ def make_td3(obs_size: int, context_size: int, action_size: int, action_scale,
 
   def actor_loss(actor_params, params: TD3Params, batch: Transition):
     a = pi(actor_params, batch.obs, batch.context)
-    q1 = q_values(params.critic, batch.obs, batch.context, a)[0]
+    # Q1 alone (TD3's actor follows the first critic): the twin pair's second half would be
+    # computed forward and backward for nothing
+    critic_1 = jax.tree.map(lambda x: x[0], params.critic)
+    q1 = critic_net.apply(critic_1, batch.obs, batch.context, a)[..., 0]
     loss = -jp.mean(q1)
     return loss, {"actor_loss": loss}
 
