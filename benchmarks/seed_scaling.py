@@ -56,8 +56,9 @@ def td3_flops(obs: int, context: int, action: int, hidden, batch: int) -> float:
   A forward pass costs 2 * sum(fan_in * fan_out) per sample; a backward pass the same for
   the input gradients (none for the first layer) and the same for the weight gradients.
   Critic step: target actor, twin target critics, twin critics forward + backward. Actor
-  step: actor forward, both twins forward and their input gradients (``q_values(...)[0]``
-  runs the pair), actor backward.
+  step: actor forward, the first critic forward and its input gradients down to the actions
+  (its first layer's too), actor backward. (Before ec38806 the actor's loss ran both critics,
+  counted here until then: rows of results/ from before count 2 critics in the actor step.)
   """
   def layers(n_in, n_out):
     sizes = [n_in, *hidden, n_out]
@@ -66,7 +67,7 @@ def td3_flops(obs: int, context: int, action: int, hidden, batch: int) -> float:
   fwd = lambda w: 2 * sum(w)
   bwd_in = lambda w: 2 * sum(w[1:])
   critic_step = fwd(actor) + 2 * fwd(critic) + 2 * (fwd(critic) + bwd_in(critic) + fwd(critic))
-  actor_step = fwd(actor) + 2 * (fwd(critic) + bwd_in(critic)) + bwd_in(actor) + fwd(actor)
+  actor_step = fwd(actor) + 2 * fwd(critic) + bwd_in(actor) + fwd(actor)
   return batch * (critic_step + actor_step)
 
 
