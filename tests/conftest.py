@@ -62,3 +62,14 @@ def compiled_env():
     return _compiled[name, physics]
 
   return get
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _programs_per_module():
+  """Trainers built again within a test module reuse their programs (``train._programs``);
+  each module starts with none, so a worker holds no more compiled programs than the module
+  it runs (a session's workers run dozens of modules, some with ant programs)."""
+  from nonmono_jax.core import train
+  train._programs.cache_clear()
+  yield
+  train._programs.cache_clear()
