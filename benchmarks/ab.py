@@ -18,12 +18,9 @@ Writes ``benchmarks/results/ab_<platform>_<date>.json``.
 from __future__ import annotations
 
 import argparse
-import glob
-import json
 import os
 import shutil
 import statistics
-import subprocess
 import sys
 import tempfile
 
@@ -32,15 +29,7 @@ from benchmarks import common
 
 def _run(root: str, name: str, args: list[str], out: str, metric: str) -> list[float]:
   """``metric`` of every row of one fresh run of benchmark ``name`` in ``root``."""
-  env = {**os.environ, "PYTHONPATH": root}
-  r = subprocess.run([sys.executable, "-m", f"benchmarks.{name}", *args, "--out", out],
-                     check=False, cwd=root, env=env, capture_output=True, text=True)
-  if r.returncode != 0:
-    raise SystemExit(f"benchmarks.{name} in {root} failed:\n{r.stderr[-2000:]}")
-  (path,) = glob.glob(os.path.join(out, f"{name}_*.json"))
-  with open(path) as f:
-    result = json.load(f)
-  return [row[metric] for row in result.get("results") or result["rows"]]
+  return [row[metric] for row in common.rows(common.run_fresh(root, name, args, out))]
 
 
 def main(argv=None) -> None:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import datetime
+import glob
 import json
 import os
 import platform
@@ -78,6 +79,24 @@ def write_result(name: str, out_dir: str, argv: list[str] | None, quiet: bool = 
   if not quiet:
     print("wrote", path)
   return path
+
+
+def run_fresh(root: str, name: str, args: list[str], out: str) -> dict:
+  """The result file of one run of benchmark ``name`` (``python -m benchmarks.<name> <args>
+  --out <out>``) in a fresh process on the code under ``root``."""
+  env = {**os.environ, "PYTHONPATH": root}
+  r = subprocess.run([sys.executable, "-m", f"benchmarks.{name}", *args, "--out", out],
+                     check=False, cwd=root, env=env, capture_output=True, text=True)
+  if r.returncode != 0:
+    raise SystemExit(f"benchmarks.{name} in {root} failed:\n{r.stderr[-2000:]}")
+  (path,) = glob.glob(os.path.join(out, f"{name}_*.json"))
+  with open(path) as f:
+    return json.load(f)
+
+
+def rows(result: dict) -> list[dict]:
+  """A result file's rows (``results``, or ``rows`` in the older benchmarks)."""
+  return result.get("results") or result["rows"]
 
 
 def memory_stats() -> dict:

@@ -143,7 +143,7 @@ class Harness:
     self.evals = {}
     self.window = _new_window()
     self.clock = {"start": time.time(), "busy": 0.0, "mark": None, "mark_t": None,
-                  "eval_mark": None, "eval_mark_t": None}
+                  "eval_mark": None, "eval_mark_t": None, "cpu_mark": None, "cpu_busy": 0.0}
 
   # ----- setup -------------------------------------------------------------------------------
 
@@ -334,7 +334,7 @@ class Harness:
       self.clock["wall_before"] = saved["wall"]
     now = time.time()
     self.clock.update(mark=now, mark_t=self.t, eval_mark=now, eval_mark_t=self.t, busy=0.0,
-                      eval_busy=0.0)
+                      eval_busy=0.0, cpu_mark=time.process_time(), cpu_busy=0.0)
 
   def _wall(self):
     return round(self.clock.get("wall_before", 0.0) + time.time() - self.clock["start"], 1)
@@ -346,6 +346,17 @@ class Harness:
     seconds = now - self.clock[key_mark] - busy
     steps = self.t - self.clock[key_t]
     self.clock[key_mark], self.clock[key_t], self.clock[key_busy] = now, self.t, 0.0
+    return round(steps / seconds, 2) if seconds > 0 and steps > 0 else ""
+
+  def _cpu_rate(self):
+    """Training env steps per CPU-second of this process (all its threads) since the last
+    window, leaving out evaluation and checkpoints: unlike the wall rate, not stretched by
+    other processes' preemption (``benchmarks.paper_code`` reads it). Call before ``_rate``
+    moves the window's mark."""
+    now = time.process_time()
+    seconds = now - self.clock["cpu_mark"] - self.clock["cpu_busy"]
+    steps = self.t - self.clock["mark_t"]
+    self.clock["cpu_mark"], self.clock["cpu_busy"] = now, 0.0
     return round(steps / seconds, 2) if seconds > 0 and steps > 0 else ""
 
   def _observed_correction(self, correction):
@@ -384,6 +395,7 @@ class Harness:
         "success_rate": local["success_rate"],
         "higher_success_rate": local["higher_success_rate"],
         "mujoco_warnings": sum(self.mujoco_py.warning_counts.values()),
+        "train_steps_per_cpu_s": self._cpu_rate(),
         "train_steps_per_s": self._rate("mark", "mark_t", "busy"), "wall_s": self._wall()}
     self.window = _new_window()
     self.logs.window(row)
@@ -394,7 +406,7 @@ class Harness:
 
   def _checkpoint(self, frame, t):
     from reference import state
-    start = time.time()
+    start, cpu = time.time(), time.process_time()
     if frame.f_locals["t"] != t:
       raise RuntimeError(f"the harness counted t={t}, the loop is at {frame.f_locals['t']}")
     self.logs.flush()
@@ -402,17 +414,18 @@ class Harness:
                "warnings": dict(self.mujoco_py.warning_counts), "wall": self._wall(),
                "config": dataclasses.asdict(self.config)}
     state.write(self.checkpoint_path, state.capture(frame, t, harness))
-    self._busy(time.time() - start)
+    self._busy(time.time() - start, time.process_time() - cpu)
 
-  def _busy(self, seconds):
+  def _busy(self, seconds, cpu_seconds):
     self.clock["busy"] += seconds
     self.clock["eval_busy"] += seconds
+    self.clock["cpu_busy"] += cpu_seconds
 
   # ----- evaluations, logging, the end -------------------------------------------------------
 
   def _evaluation(self, key, evaluate):
     def timed(*args, **kwargs):
-      start = time.time()
+      start, cpu = time.time(), time.process_time()
       episodes = []
       self.recording = episodes
       limit = self.config.eval_episodes
@@ -424,7 +437,7 @@ class Harness:
         self.recording = None
         self.hiro.__dict__.pop("range", None)
       seconds = time.time() - start
-      self._busy(seconds)
+      self._busy(seconds, time.process_time() - cpu)
       target = np.asarray(args[3].cpu().numpy() if key == "td3" else args[3].cpu().numpy(),
                           dtype=np.float64)
       distances = [float(np.linalg.norm(xyz - target)) for xyz in episodes]

@@ -21,9 +21,11 @@ WINDOW_COLUMNS = (
     "higher_success_rate", "mujoco_warnings", "train_steps_per_s", "wall_s",
     # per segment ended in the window: the Low's subgoal at its start, ||g_0||, at its end,
     # ||g_c||, whether ||g_c|| <= 1.5, and ||g_0|| - ||g_c|| (means); added 2026-12-05
-    "segments", "subgoal_start", "subgoal_distance", "subgoal_reached", "subgoal_progress")
+    "segments", "subgoal_start", "subgoal_distance", "subgoal_reached", "subgoal_progress",
+    # training env steps per CPU-second of the process (evaluation and checkpoints left out)
+    "train_steps_per_cpu_s")
 # Columns that measure time; they differ between runs and are left out of comparisons.
-TIMING = ("eval_s", "eval_ppo_s", "train_steps_per_s", "wall_s")
+TIMING = ("eval_s", "eval_ppo_s", "train_steps_per_s", "train_steps_per_cpu_s", "wall_s")
 
 
 def _cut_csv(path, keep):

@@ -323,3 +323,17 @@ def test_a_run_with_the_studys_settings_leaves_out_the_ppo_evaluation(tmp_path):
   assert all(int(w["segments"]) == 25 and 0 <= float(w["subgoal_reached"]) <= 1
              and float(w["subgoal_start"]) - float(w["subgoal_distance"])
              == pytest.approx(float(w["subgoal_progress"]), abs=1e-9) for w in windows)
+
+
+@needs_reference
+def test_the_codes_training_rate_is_read_per_cpu_second_after_its_warmup(tmp_path):
+  """``benchmarks.paper_code``'s side of the code: the windows after the warm-up, each timed
+  by the wall clock and by the process's CPU time (evaluation and checkpoints left out)."""
+  from benchmarks import paper_code
+  got = paper_code.run_code(str(tmp_path / "code"), steps=200, warmup=100, window=100,
+                            threads=1)
+  assert got["windows"] == 2 and got["threads"] == 1
+  assert got["env_steps_per_s"] > 0 and got["env_steps_per_cpu_s"] > 0
+  windows = logs.read_csv(tmp_path / "code" / "windows.csv", drop=())
+  assert [w["step"] for w in windows] == ["0", "100", "200"]
+  assert all(float(w["train_steps_per_cpu_s"]) > 0 for w in windows)
