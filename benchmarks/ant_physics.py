@@ -30,15 +30,14 @@ import jax
 from benchmarks import common
 from benchmarks.seed_scaling import matmul_gflops, step_flops
 from nonmono_jax.core import train
-from nonmono_jax.host import methods, plan, run
+from nonmono_jax.host import methods, run
 
 CHUNK = 200
 
 
 def make(env_name: str, method: str, seeds: int, physics: str, chunk: int) -> dict:
   """A compiled paper-settings trainer and its state (evaluation off in the chunk)."""
-  env = plan.make_env(env_name, 1000, physics if env_name.startswith("Ant") else None)
-  config = common.paper_config(method, "AntPush", common.ALL_MODES_LIVE)
+  env, config = common.paper_setup(env_name, method, physics)
   trainer = train.make_trainer(env, config, num_seeds=seeds, chunk_steps=chunk)
   states = jax.block_until_ready(trainer.init(jax.random.PRNGKey(0)))
   t0 = time.perf_counter()

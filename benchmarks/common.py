@@ -35,6 +35,23 @@ def paper_config(method: str, task: str, overrides: dict | None = None) -> Agent
   return methods.build_config("paper", method, task, {**ring, **(overrides or {})})[0]
 
 
+def paper_env(env_name: str, physics: str = "c"):
+  """The env the speed benchmarks time: ``env_name`` with the paper's 1000-step episodes, an
+  ant on ``physics`` ("c", "mjx" or "auto")."""
+  from nonmono_jax.host import plan
+  return plan.make_env(env_name, 1000, physics if env_name.startswith("Ant") else None)
+
+
+def paper_setup(env_name: str, method: str, physics: str = "c",
+                overrides: dict | None = None):
+  """``paper_env`` and ``method``'s config at the paper's settings: the paper preset of the
+  Ant twin of the task (``paper_config``) with every mode live (``ALL_MODES_LIVE``), then
+  ``overrides``."""
+  task = env_name.replace("Point", "Ant")
+  return (paper_env(env_name, physics),
+          paper_config(method, task, {**ALL_MODES_LIVE, **(overrides or {})}))
+
+
 def export_revision(ref: str, folder: str) -> str:
   """Git revision ``ref`` of this repository, exported into ``folder`` (made if missing)."""
   os.makedirs(folder, exist_ok=True)

@@ -26,10 +26,8 @@ import jax.numpy as jp
 import numpy as np
 
 from benchmarks import common
-from benchmarks.common import ALL_MODES_LIVE
 from nonmono_jax.core import train
-from nonmono_jax.core.config import override
-from nonmono_jax.host import methods, plan, run
+from nonmono_jax.host import methods, run
 
 
 def parse_option(text: str) -> tuple[str, object]:
@@ -112,9 +110,7 @@ def main(argv=None):
   args = p.parse_args(argv)
   candidates = [dict(parse_option(o) for o in c.split(",")) for c in args.candidates]
   run.use_cpu_devices(args.cpu_devices)
-  env = plan.make_env(args.env, 1000, "c" if args.env.startswith("Ant") else None)
-  task = args.env.replace("Point", "Ant")  # the paper's settings
-  config = override(common.paper_config(args.method, task), {**ALL_MODES_LIVE, "num_envs": 1})
+  env, config = common.paper_setup(args.env, args.method)
   rows = compare(env, config, args.seeds, args.chunk, candidates, args.rounds)
   common.write_result("compiler_options", args.out, argv, env=args.env, method=args.method,
                       seeds=args.seeds, chunk=args.chunk, baseline=train.COMPILER_OPTIONS,

@@ -98,8 +98,9 @@ def main(argv=None) -> None:
             f"({r['code']['env_steps_per_cpu_s']:.0f} per CPU-s); ours "
             + ", ".join(f"{row['env_steps_per_s']:.0f} ({row['env_steps_per_cpu_s']:.0f})"
                         for row in r["ours"])
-            + "; ratio " + ", ".join(f"{x['env_steps_per_s']:.2f}x ({x['env_steps_per_cpu_s']:.2f}x)"
-                                     for x in r["ratio"]), flush=True)
+            + "; ratio " + ", ".join(
+                f"{x['env_steps_per_s']:.2f}x ({x['env_steps_per_cpu_s']:.2f}x)"
+                for x in r["ratio"]), flush=True)
       common.write_result("paper_code", args.out, argv, quiet=True, complete=False,
                           ours_command=" ".join(ours), rounds=rounds)
   median = [{m: statistics.median(r["ratio"][j][m] for r in rounds) for m in METRICS}

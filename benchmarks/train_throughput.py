@@ -44,13 +44,13 @@ from benchmarks import common
 from benchmarks.common import ALL_MODES_LIVE
 from nonmono_jax.core import train
 from nonmono_jax.core.config import override
-from nonmono_jax.host import methods, plan, run
+from nonmono_jax.host import methods, run
 
 
 def measure(env_name: str, method: str, seeds: int, num_envs: int, chunk: int,
             repeats: int, time_eval: bool, grad_steps: int | None = None,
             physics: str = "auto") -> dict:
-  env = plan.make_env(env_name, 1000, physics if env_name.startswith("Ant") else None)
+  env = common.paper_env(env_name, physics)
   task = env_name.replace("Point", "Ant")  # the paper's settings
   base = common.paper_config(method, task)
   if grad_steps is not None:  # widened, its buffers sized for a run of one chunk

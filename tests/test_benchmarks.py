@@ -76,3 +76,24 @@ def test_compiler_options_compares_bits_and_times_each_candidate(tmp_path):
   assert row["options"] == {"xla_cpu_multi_thread_eigen": False}
   assert row["same_bits"] is True  # Eigen's threads split a dot's rows, not its sums
   assert len(row["rounds_cpu"]) == 2 and row["speedup_wall"] > 0
+
+
+def test_thin_gemm_times_the_three_forms_of_a_td3_layer(tmp_path):
+  """Each form is the product it names (the weight gradient contracts the batch rows), and a
+  run gives one row per form and seed count with its share of the roofline."""
+  from benchmarks import thin_gemm
+  B, K, N = 5, 3, 4
+  x, w, dy = (np.random.default_rng(i).normal(size=s) for i, s in
+              enumerate([(B, K), (K, N), (B, N)]))
+  want = {"forward x @ W": (x, w, x @ w), "input grad dy @ W.T": (dy, w, dy @ w.T),
+          "weight grad x.T @ dy": (x, dy, x.T @ dy)}
+  for name, (shapes, spec) in thin_gemm.FORMS.items():
+    a, b, out = want[name]
+    assert shapes(B, K, N) == (a.shape, b.shape)
+    np.testing.assert_allclose(np.einsum(spec, a, b), out, rtol=1e-12)
+  thin_gemm.main(["--seeds", "1", "--shape", "4", "8", "8", "--inner", "2", "--repeats", "1",
+                  "--out", str(tmp_path)])
+  (path,) = tmp_path.glob("thin_gemm_*.json")
+  import json
+  rows = json.load(open(path))["results"]
+  assert [r["form"] for r in rows] == list(thin_gemm.FORMS) and all(r["share"] > 0 for r in rows)

@@ -159,13 +159,13 @@ def _make(env, config, per_lane, num_seeds, chunk_steps, devices, compiler_optio
   progs = _programs(env, config, num_seeds, variants, chunk_steps, devices, options)
   hp = jax.device_put(per_lane, progs.seeds)
   chunk = lambda states, t0: progs.chunk(states, t0, hp)
-  lower = lambda states: progs.chunk.lower(states, 0, hp)
+  lower = lambda states, t0=0: progs.chunk.lower(states, t0, hp)
 
   def program_bytes():
     return compiled_bytes(lower(jax.eval_shape(progs.init, jax.random.PRNGKey(0))).compile())
 
   def compile_for(states, t0):
-    progs.chunk.lower(states, t0, hp).compile()
+    lower(states, t0).compile()
   return Trainer(
       agent=progs.agent, num_seeds=num_seeds, chunk_steps=chunk_steps, mesh=progs.mesh,
       init=progs.init, chunk=chunk, evaluate=progs.evaluate, variants=variants,

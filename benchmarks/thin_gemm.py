@@ -1,0 +1,110 @@
+"""How fast can the TD3 update's matmuls run here? Their shapes alone, as a share of the
+machine's matmul roofline measured in the same run.
+
+A Low TD3 update at the paper's settings is GEMMs of batch 100 rows against 300 x 300 layers
+(and thinner ones at the inputs and outputs), in three forms: the forward pass ``x @ W``, the
+input gradient ``dy @ W.T`` and the weight gradient ``x.T @ dy`` (contracting the 100 rows).
+Vmapped over S seeds each is a batched dot of S small GEMMs. This times each form alone,
+jitted, for each ``--seeds`` count, on the devices the trainer would use (``--cpu-devices``:
+seeds split over them as in training), in turns with the 1024^3 matmul of
+``seed_scaling.matmul_gflops`` (best of ``--repeats``), and reports GFLOP/s and the share of
+that roofline. A shared machine slows both alike: read the shares. If the forms' share is below
+a goal's share of the roofline, the dots alone keep the trainer from it, whatever the rest does.
+
+    python -m benchmarks.thin_gemm --seeds 1 4 --cpu-devices 2
+
+Writes ``benchmarks/results/thin_gemm_<platform>_<date>.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import jax
+import jax.numpy as jp
+import numpy as np
+from jax.sharding import NamedSharding, PartitionSpec
+
+from benchmarks import common
+from nonmono_jax.host import run
+
+FORMS = {  # name: (lhs shape, rhs shape, einsum) for rows B, fan in K, fan out N
+    "forward x @ W": (lambda B, K, N: ((B, K), (K, N)), "bk,kn->bn"),
+    "input grad dy @ W.T": (lambda B, K, N: ((B, N), (K, N)), "bn,kn->bk"),
+    "weight grad x.T @ dy": (lambda B, K, N: ((B, K), (B, N)), "bk,bn->kn"),
+}
+
+
+def timed(f, args, repeats: int) -> float:
+  jax.block_until_ready(f(*args))
+  best = float("inf")
+  for _ in range(repeats):
+    t0 = time.perf_counter()
+    jax.block_until_ready(f(*args))
+    best = min(best, time.perf_counter() - t0)
+  return best
+
+
+def form_program(spec: str, seeds: int, shapes, inner: int):
+  """``inner`` batched dots of ``seeds`` GEMMs in one jitted call (a scan: one call's overhead
+  shared), the seeds split over the devices."""
+  mesh = jax.make_mesh((len(jax.devices()),), ("seeds",))
+  shard = NamedSharding(mesh, PartitionSpec("seeds"))
+  keys = jax.random.split(jax.random.PRNGKey(0), 2)
+  a, b = (jax.device_put(jax.random.normal(k, (seeds, *s)) * 0.1, shard)
+          for k, s in zip(keys, shapes))
+  dot = jax.vmap(lambda x, y: jp.einsum(spec, x, y))
+
+  def program(a, b):
+    def body(carry, _):
+      out = dot(a + carry, b)  # depends on the carry: no dot hoisted out of the loop
+      return carry + 1e-9 * out.mean(), None
+    return jax.lax.scan(body, jp.float32(0), None, length=inner)[0]
+
+  return jax.jit(program), (a, b)
+
+
+def measure(seeds: int, B: int, K: int, N: int, inner: int, repeats: int,
+            roofline_n: int = 1024) -> list[dict]:
+  x = jax.random.normal(jax.random.PRNGKey(0), (roofline_n, roofline_n))
+  big = jax.jit(lambda a: a @ a)
+  rows = []
+  for name, (shapes, spec) in FORMS.items():
+    f, args = form_program(spec, seeds, shapes(B, K, N), inner)
+    t_big, t = timed(big, (x,), repeats), timed(f, args, repeats)
+    roof = 2 * roofline_n**3 / t_big / 1e9
+    gflops = 2 * seeds * B * K * N * inner / t / 1e9
+    rows.append({"form": name, "seeds": seeds, "devices": jax.device_count(), "rows": B,
+                 "fan_in": K, "fan_out": N, "gflops": gflops, "roofline_gflops": roof,
+                 "share": gflops / roof})
+    print(f"{name:22s} seeds {seeds:2d} [{B}x{K}x{N}] on {jax.device_count()} device(s): "
+          f"{gflops:6.1f} GFLOP/s = {gflops / roof:5.1%} of the roofline ({roof:.0f})",
+          flush=True)
+  return rows
+
+
+def main(argv=None) -> None:
+  p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+  p.add_argument("--seeds", nargs="+", type=int, default=[1, 4])
+  p.add_argument("--shape", nargs=3, type=int, default=[100, 300, 300], metavar=("B", "K", "N"),
+                 help="rows (the TD3 batch), fan in, fan out (default: the Low's 300 x 300)")
+  p.add_argument("--inner", type=int, default=50, help="dots per timed call")
+  p.add_argument("--repeats", type=int, default=10)
+  p.add_argument("--cpu-devices", type=int, default=1, metavar="N")
+  p.add_argument("--out", default=common.RESULTS)
+  args = p.parse_args(argv)
+  run.use_cpu_devices(args.cpu_devices)
+  if any(s % jax.device_count() for s in args.seeds):
+    p.error("each --seeds must be a multiple of --cpu-devices")
+  rows = []
+  for s in args.seeds:
+    rows += measure(s, *args.shape, args.inner, args.repeats)
+    common.write_result("thin_gemm", args.out, argv, quiet=True, complete=False, results=rows)
+  shares = np.array([r["share"] for r in rows])
+  print(f"share of the roofline: {shares.min():.1%} to {shares.max():.1%}")
+  common.write_result("thin_gemm", args.out, argv, complete=True, results=rows)
+
+
+if __name__ == "__main__":
+  main()
