@@ -588,14 +588,16 @@ def figure_folders(dirs, out=None) -> dict:
   return folders
 
 
-def plot(dirs, out=None, axis: str = "env") -> list[str]:
+def plot(dirs, out=None, axis: str | None = None) -> list[str]:
   """Every task's figures and a ``summary.md`` per figure folder (``figure_folders``), on the
   env-step or the paper's axis (``load``); the files written. The Ant Push study of the
   paper's code beside ours (``sidebyside.is_study``): its figure instead, on the paper's axis,
   into ``out`` or ``figures`` of the first folder (``sidebyside.figures``)."""
   from experiments import sidebyside  # it imports this module
   if sidebyside.is_study(dirs):
+    _paper_axis_only(axis)
     return sidebyside.figures(sidebyside.load(dirs), out or os.path.join(dirs[0], "figures"))
+  axis = axis or "env"
   rows = load(dirs, axis)
   written = []
   for folder, tasks in figure_folders(dirs, out).items():
@@ -691,9 +693,10 @@ def main(argv=None) -> int:
                       "that holds the task)")
   p.add_argument("--table", action="store_true",
                  help="also print a Markdown table of final / best S_E and mode counts")
-  p.add_argument("--axis", choices=tuple(AXES), default="env",
+  p.add_argument("--axis", choices=tuple(AXES), default=None,
                  help="x-axis: env steps (default) or the paper's, env steps after the "
-                      "warm-up (its code logs at t - start_timestep)")
+                      "warm-up (its code logs at t - start_timestep); the Ant Push study of "
+                      "the paper's code is drawn on the paper's axis only")
   args = p.parse_args(argv)
   try:
     written = plot(args.dirs, args.out, args.axis)
@@ -709,12 +712,20 @@ def main(argv=None) -> int:
   return 0
 
 
-def _table_text(dirs, axis: str) -> str:
+def _table_text(dirs, axis: str | None) -> str:
   """What ``--table`` prints: ``tables`` of the folders' rows, or the study's readings."""
   from experiments import sidebyside  # it imports this module
   if sidebyside.is_study(dirs):
+    _paper_axis_only(axis)
     return sidebyside.markdown(sidebyside.readings(sidebyside.load(dirs))).rstrip("\n")
-  return tables(load(dirs, axis))
+  return tables(load(dirs, axis or "env"))
+
+
+def _paper_axis_only(axis: str | None) -> None:
+  """The study of the paper's code beside ours has one axis, the paper's."""
+  if axis not in (None, "paper"):
+    raise ValueError(f"the study of the paper's code beside ours is drawn on the paper's axis "
+                     f"(env steps after the warm-up) only, not --axis {axis}")
 
 
 if __name__ == "__main__":

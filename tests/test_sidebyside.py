@@ -143,7 +143,12 @@ def test_plot_draws_the_study_figure_with_hiro(tmp_path, capsys):
   rows = sidebyside.load([str(tmp_path)])
   assert sidebyside.figure_label(rows, "hiro") == "HIRO (3 seeds)"
   assert sidebyside.figure_label(rows, "reference") == "The paper's code (3 seeds)"
-  assert "the paper's code (reference) and ours" in plot._table_text([str(tmp_path)], "env")
+  assert "the paper's code (reference) and ours" in plot._table_text([str(tmp_path)], None)
+  assert plot.main([str(tmp_path), "--axis", "paper", "--out", str(tmp_path / "p")]) == 0
+  with pytest.raises(SystemExit) as err:  # its one axis is the paper's: said, not ignored
+    plot.main([str(tmp_path), "--axis", "env"])
+  assert err.value.code == 2
+  assert "drawn on the paper's axis" in capsys.readouterr().err
 
 
 def test_figure_of_a_study_still_going_without_hiro(tmp_path):
