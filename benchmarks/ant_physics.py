@@ -94,7 +94,8 @@ def main(argv=None):
   args = p.parse_args(argv)
   run.use_cpu_devices(args.cpu_devices)
   roofline = matmul_gflops()
-  print(f"matmul roofline (1024^3 float32, jitted): {roofline:.1f} GFLOP/s", flush=True)
+  print(f"matmul roofline (1024^3 float32, jitted): {roofline:.1f} GFLOP/s (read again after "
+        f"the timing, the better kept)", flush=True)
   progs = {}
   for method in args.methods:
     for s in args.seeds:
@@ -105,6 +106,9 @@ def main(argv=None):
   for _ in range(args.repeats):
     for prog in progs.values():
       time_round(prog, args.chunk)
+  # read again after the timing, the better of the two kept: a reading that lost a core to
+  # another process is not the machine's roofline
+  roofline = max(roofline, matmul_gflops())
   rows = []
   for (env_name, method, s), prog in progs.items():
     if env_name == "AntPush" and not args.no_eval and s == min(args.seeds):

@@ -1,8 +1,12 @@
-"""XLA compiler options, A/B in one process: the training chunk compiled as the trainer compiles
-it (``train.COMPILER_OPTIONS``) and with each candidate's options added, run from one start state.
+"""XLA compiler options (or config choices), A/B in one process: the training chunk compiled as
+the trainer compiles it (``train.COMPILER_OPTIONS``) and with each candidate's options added
+(``--try``) or its dotted config overrides applied (``--try-config``: choices that change the
+program, not the train state's layout), run from one start state.
 
     python -m benchmarks.compiler_options --env AntPush --seeds 1 \\
         --try xla_cpu_prefer_vector_width=512 --try xla_cpu_multi_thread_eigen=false
+    python -m benchmarks.compiler_options --env AntPush --seeds 4 --cpu-devices 2 \\
+        --try-config low.matmul=bfloat16,middle.matmul=bfloat16
 
 For every candidate: whether its chunk computes the baseline's bits (every leaf of the states
 and metrics after one chunk from the same start), and its speed against the baseline's, the
@@ -22,11 +26,11 @@ import argparse
 import time
 
 import jax
-import jax.numpy as jp
 import numpy as np
 
 from benchmarks import common
 from nonmono_jax.core import train
+from nonmono_jax.core.config import override
 from nonmono_jax.host import methods, run
 
 
@@ -46,7 +50,8 @@ def parse_option(text: str) -> tuple[str, object]:
 
 
 def _copy(states):
-  return jax.tree.map(jp.copy, states)
+  """A copy of ``states`` on their shardings (``jp.copy`` would replicate an empty array)."""
+  return jax.tree.map(lambda x: jax.device_put(x, x.sharding, may_alias=False), states)
 
 
 def _timed(compiled, states, t0) -> tuple[float, float]:
@@ -62,21 +67,22 @@ def same_bits(a, b) -> bool:
              for x, y in zip(jax.tree.leaves(a), jax.tree.leaves(b)))
 
 
-def compare(env, config, seeds: int, chunk: int, candidates: list[dict], rounds: int) -> list:
-  """One row per candidate: its bits against the baseline's and the per-round time ratios
-  (baseline / candidate: above 1, the candidate is faster)."""
-  def build(options):
-    trainer = train.make_trainer(env, config, num_seeds=seeds, chunk_steps=chunk,
-                                 compiler_options=options or None)
+def compare(env, config, seeds: int, chunk: int, candidates: list[tuple[dict, dict]],
+            rounds: int) -> list:
+  """One row per candidate (XLA options, config overrides): its bits against the baseline's
+  and the per-round time ratios (baseline / candidate: above 1, the candidate is faster)."""
+  def build(options, overrides):
+    trainer = train.make_trainer(env, override(config, overrides), num_seeds=seeds,
+                                 chunk_steps=chunk, compiler_options=options or None)
     return common.compile_chunk(trainer, start)
   start = train.make_trainer(env, config, num_seeds=seeds, chunk_steps=chunk).init(
       jax.random.PRNGKey(0))
-  base = build({})
+  base = build({}, {})
   after_base = jax.block_until_ready(base(_copy(start), 0))  # also the first (warm-up) call
   states = after_base[0]  # every timed chunk is the second, from the baseline's states
   rows = []
-  for options in candidates:
-    cand = build(options)
+  for options, overrides in candidates:
+    cand = build(options, overrides)
     after = jax.block_until_ready(cand(_copy(start), 0))
     times = {"baseline": [], "candidate": []}
     for r in range(rounds):
@@ -84,14 +90,14 @@ def compare(env, config, seeds: int, chunk: int, candidates: list[dict], rounds:
       for name in order:
         times[name].append(_timed(base if name == "baseline" else cand, states, chunk))
     b, c = np.array(times["baseline"]), np.array(times["candidate"])
-    row = {"options": options, "same_bits": same_bits(after, after_base),
+    row = {"options": options, "overrides": overrides, "same_bits": same_bits(after, after_base),
            "speedup_wall": float(np.median(b[:, 0] / c[:, 0])),
            "speedup_cpu": float(np.median(b[:, 1] / c[:, 1])),
            "rounds_wall": (b[:, 0] / c[:, 0]).tolist(), "rounds_cpu": (b[:, 1] / c[:, 1]).tolist(),
            "env_steps_per_s": {"baseline": seeds * chunk / b[:, 0].min(),
                                "candidate": seeds * chunk / c[:, 0].min()}}
     rows.append(row)
-    print(f"{options}: same bits {row['same_bits']}, speedup wall {row['speedup_wall']:.3f}, "
+    print(f"{options or ''}{overrides or ''}: same bits {row['same_bits']}, speedup wall {row['speedup_wall']:.3f}, "
           f"CPU {row['speedup_cpu']:.3f} (median of {rounds} rounds)", flush=True)
   return rows
 
@@ -103,12 +109,19 @@ def main(argv=None):
   p.add_argument("--seeds", type=int, default=1)
   p.add_argument("--chunk", type=int, default=200, help="env steps per timed call")
   p.add_argument("--rounds", type=int, default=6)
-  p.add_argument("--try", dest="candidates", action="append", required=True, metavar="OPTIONS",
+  p.add_argument("--try", dest="candidates", action="append", default=[], metavar="OPTIONS",
                  help="a candidate: name=value[,name=value...] added to the trainer's options")
+  p.add_argument("--try-config", dest="configs", action="append", default=[],
+                 metavar="OVERRIDES", help="a candidate: dotted config overrides "
+                 "path=value[,path=value...] (e.g. low.matmul=bfloat16)")
   p.add_argument("--cpu-devices", type=int, default=1, metavar="N")
   p.add_argument("--out", default=common.RESULTS)
   args = p.parse_args(argv)
-  candidates = [dict(parse_option(o) for o in c.split(",")) for c in args.candidates]
+  if not args.candidates and not args.configs:
+    p.error("give a candidate: --try OPTIONS or --try-config OVERRIDES")
+  parse = lambda c: dict(parse_option(o) for o in c.split(","))
+  candidates = ([(parse(c), {}) for c in args.candidates]
+                + [({}, parse(c)) for c in args.configs])
   run.use_cpu_devices(args.cpu_devices)
   env, config = common.paper_setup(args.env, args.method)
   rows = compare(env, config, args.seeds, args.chunk, candidates, args.rounds)

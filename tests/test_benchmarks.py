@@ -68,14 +68,15 @@ def test_compiler_options_compares_bits_and_times_each_candidate(tmp_path):
   assert compiler_options.parse_option("a=512") == ("a", 512)
   assert compiler_options.parse_option("b=False") == ("b", False)
   compiler_options.main(["--env", "PointPush", "--method", "hiro", "--chunk", "10", "--rounds",
-                         "2", "--try", "xla_cpu_multi_thread_eigen=false", "--out",
-                         str(tmp_path)])
+                         "2", "--try", "xla_cpu_multi_thread_eigen=false", "--try-config",
+                         "low.tau=0.01", "--out", str(tmp_path)])
   (path,) = tmp_path.glob("compiler_options_*.json")
   import json
-  (row,) = json.load(open(path))["results"]
-  assert row["options"] == {"xla_cpu_multi_thread_eigen": False}
-  assert row["same_bits"] is True  # Eigen's threads split a dot's rows, not its sums
-  assert len(row["rounds_cpu"]) == 2 and row["speedup_wall"] > 0
+  eigen, tau = json.load(open(path))["results"]
+  assert eigen["options"] == {"xla_cpu_multi_thread_eigen": False} and not eigen["overrides"]
+  assert eigen["same_bits"] is True  # Eigen's threads split a dot's rows, not its sums
+  assert len(eigen["rounds_cpu"]) == 2 and eigen["speedup_wall"] > 0
+  assert tau["overrides"] == {"low.tau": 0.01} and tau["same_bits"] is False  # other targets
 
 
 def test_thin_gemm_times_the_three_forms_of_a_td3_layer(tmp_path):
