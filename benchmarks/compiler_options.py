@@ -6,7 +6,9 @@ program, not the train state's layout), run from one start state.
     python -m benchmarks.compiler_options --env AntPush --seeds 1 \\
         --try xla_cpu_prefer_vector_width=512 --try xla_cpu_multi_thread_eigen=false
     python -m benchmarks.compiler_options --env AntPush --seeds 4 --cpu-devices 2 \\
-        --try-config low.matmul=bfloat16,middle.matmul=bfloat16
+        --try-config low.target_noise=batch
+
+(bfloat16 TD3 dots were tried this way, at 7167e40, and left: docs/benchmarks.md.)
 
 For every candidate: whether its chunk computes the baseline's bits (every leaf of the states
 and metrics after one chunk from the same start), and its speed against the baseline's, the

@@ -92,11 +92,9 @@ def test_actor_gate_stays_a_branch_under_vmap():
   assert not np.allclose(w[0], w[1])  # seeds differ
 
 
-@pytest.mark.parametrize("matmul", ["float32", "bfloat16"])
-def test_td3_solves_a_contextual_bandit(matmul):
-  """r = -(a - c)^2, one step: Q approaches the true value and pi(c) approaches c (also with
-  the dots on bfloat16 operands)."""
-  cfg = dataclasses.replace(SMALL, lr_actor=1e-3, policy_delay=2, matmul=matmul)
+def test_td3_solves_a_contextual_bandit():
+  """r = -(a - c)^2, one step: Q approaches the true value and pi(c) approaches c."""
+  cfg = dataclasses.replace(SMALL, lr_actor=1e-3, policy_delay=2)
   agent = td3.make_td3(1, 1, 1, 1.0, cfg)
 
   def batch(key):
@@ -133,8 +131,7 @@ def test_explore_clips_to_action_scale():
 
 
 def test_config_validation_names_the_field():
-  for field, bad in (("lr_actor", 0.0), ("tau", 2.0), ("batch_size", 0), ("noise_clip", -1.0),
-                     ("matmul", "float16")):
+  for field, bad in (("lr_actor", 0.0), ("tau", 2.0), ("batch_size", 0), ("noise_clip", -1.0)):
     with pytest.raises(ValueError, match=field):
       td3.TD3Config(**{field: bad})
 
@@ -170,21 +167,3 @@ def test_mlp_concatenates_inputs():
   x = jax.random.normal(jax.random.PRNGKey(1), (4, 5))
   np.testing.assert_allclose(net.apply(p, x[:, :2], x[:, 2:]), net.apply(p, x), rtol=1e-6)
   assert net.apply(p, x).shape == (4, 3)
-
-
-def test_bfloat16_dots_round_the_operands_and_keep_float32_elsewhere():
-  """The same parameters (float32, the same tree) and float32 outputs and gradients; the dots'
-  operands rounded to bfloat16 (8 bits of mantissa): close to the float32 network, not equal."""
-  f32, bf16 = (networks.make_mlp(6, (64, 64), 3, matmul=m) for m in ("float32", "bfloat16"))
-  p = f32.init(jax.random.PRNGKey(0))
-  assert jax.tree.structure(p) == jax.tree.structure(bf16.init(jax.random.PRNGKey(0)))
-  x = jax.random.normal(jax.random.PRNGKey(1), (16, 6))
-  a, b = f32.apply(p, x), bf16.apply(p, x)
-  assert b.dtype == jp.float32 and not np.array_equal(a, b)
-  np.testing.assert_allclose(b, a, atol=0.05 * float(jp.abs(a).max()))
-  grads = jax.grad(lambda q: (bf16.apply(q, x) ** 2).sum())(p)
-  assert all(g.dtype == jp.float32 for g in jax.tree.leaves(grads))
-  text = jax.jit(bf16.apply).lower(p, x).as_text()
-  assert "bf16" in text and "f32" in text
-  with pytest.raises(ValueError, match="matmul must be one of float32, bfloat16"):
-    networks.make_mlp(6, (8,), 3, matmul="float16")

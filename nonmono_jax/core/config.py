@@ -63,9 +63,6 @@ EVAL_KINDS = EVAL_GOALS + ("ppo",)
 # Network initialisation (networks.py): flax's lecun-uniform weights and zero biases, or
 # PyTorch's nn.Linear default (weights and biases U(+-1/sqrt(fan_in))), the paper's code's
 INITS = ("lecun", "torch")
-# The TD3 networks' dot operands (networks.py): float32, or bfloat16 rounded with float32 sums
-# and outputs (faster dots on CPUs with AVX512-BF16; other arithmetic, so off in every preset)
-MATMULS = ("float32", "bfloat16")
 MEAN_HEADS = ("linear", "tanh")  # the Gaussian PPO's mean head (ppo.py)
 CADENCES = ("periods", "code")  # when the homeostasis trigger checks (modes/trigger.py)
 TARGET_NOISES = ("sample", "batch")  # TD3's target smoothing: a draw per sample, or one per batch
@@ -171,7 +168,6 @@ class TD3Config:
   # the smoothing noise drawn per sample, or (the code) once per batch, shared by every sample
   target_noise: str = choice("sample", TARGET_NOISES)
   init: str = choice("lecun", INITS)  # network initialisation: "torch" is the paper's code
-  matmul: str = choice("float32", MATMULS)  # the dots' operands: "bfloat16" is faster, other bits
 
   def __post_init__(self):
     for name in ("lr_actor", "lr_critic", "tau", "gamma"):

@@ -92,10 +92,9 @@ def make_td3(obs_size: int, context_size: int, action_size: int, action_scale,
   """Build TD3 for observations, a context (goal) and actions in [-scale, scale]."""
   scale = jp.broadcast_to(jp.asarray(action_scale, jp.float32), (action_size,))
   actor_net = networks.make_mlp(obs_size + context_size, config.hidden, action_size,
-                                activation=nn.relu, final_activation=jp.tanh, init=config.init,
-                                matmul=config.matmul)
+                                activation=nn.relu, final_activation=jp.tanh, init=config.init)
   critic_net = networks.make_mlp(obs_size + context_size + action_size, config.hidden, 1,
-                                 activation=nn.relu, init=config.init, matmul=config.matmul)
+                                 activation=nn.relu, init=config.init)
   actor_opt = optax.adam(1.0)  # the learning rates scale the updates (learning.gradient_step)
   critic_opt = optax.adam(1.0)
 
