@@ -98,3 +98,25 @@ def test_thin_gemm_times_the_three_forms_of_a_td3_layer(tmp_path):
   import json
   rows = json.load(open(path))["results"]
   assert [r["form"] for r in rows] == list(thin_gemm.FORMS) and all(r["share"] > 0 for r in rows)
+
+
+def test_paper_code_divides_each_row_of_ours_by_the_code_and_alternates(tmp_path, monkeypatch):
+  """The ratios are ours / the code per row of ours and per metric; the sides alternate their
+  order per round. (The code's own side runs in tests/test_reference.py, with its venv.)"""
+  from benchmarks import paper_code
+  calls = []
+  code = {"env_steps_per_s": 50.0, "env_steps_per_cpu_s": 25.0, "windows": 4, "threads": 2}
+  ours = {"results": [{"env_steps_per_s": 200.0, "env_steps_per_cpu_s": 150.0, "seeds": 4},
+                      {"env_steps_per_s": 300.0, "env_steps_per_cpu_s": 100.0, "seeds": 8}]}
+  monkeypatch.setattr(paper_code, "run_code", lambda *a: calls.append("code") or dict(code))
+  monkeypatch.setattr(paper_code.common, "run_fresh",
+                      lambda root, name, args, out: calls.append(name) or ours)
+  paper_code.main(["--rounds", "2", "--out", str(tmp_path), "--", "train_throughput", "--seeds",
+                   "4", "8"])
+  assert calls == ["code", "train_throughput", "train_throughput", "code"]
+  import json
+  (path,) = tmp_path.glob("paper_code_*.json")
+  result = json.load(open(path))
+  assert result["complete"] and result["ours_command"] == "train_throughput --seeds 4 8"
+  assert result["median_ratio"] == [{"env_steps_per_s": 4.0, "env_steps_per_cpu_s": 6.0},
+                                    {"env_steps_per_s": 6.0, "env_steps_per_cpu_s": 4.0}]
