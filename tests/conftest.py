@@ -70,6 +70,6 @@ def _programs_per_module():
   each module starts with none, so a worker holds no more compiled programs than the module
   it runs (a session's workers run dozens of modules, some with ant programs)."""
   from nonmono_jax.core import train
-  train._programs.cache_clear()
+  train.forget_programs()
   yield
-  train._programs.cache_clear()
+  train.forget_programs()

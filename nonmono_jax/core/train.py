@@ -190,6 +190,12 @@ class _Programs:
 PROGRAMS_KEPT = 8
 
 
+def forget_programs() -> None:
+  """Drop the programs kept per process (``_programs``) and their compiled executables: a
+  notebook or test session that is done with its trainers gives their memory back."""
+  _programs.cache_clear()
+
+
 @functools.lru_cache(maxsize=PROGRAMS_KEPT)
 def _programs(env, key, num_seeds: int, variants: int, chunk_steps: int, devices: tuple,
               options: tuple) -> _Programs:
