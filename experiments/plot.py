@@ -458,8 +458,9 @@ def _legend_below(fig, axes, ncol: int):
 
 
 def _finish(fig, out, name, xlabel=STEPS_LABEL):
-  """Save ``name`` as PNG and PDF; the PDF without its creation date, so that drawing the same
-  files again writes the same bytes (committed figures change only when the data does).
+  """Save ``name`` as PNG and PDF and close the figure; the PDF without its creation date, so
+  that drawing the same files again writes the same bytes (committed figures change only when
+  the data does).
   Env-step axes are labelled 250k, 1M: six-digit tick labels run into each other; ``xlabel``
   names them (``AXES``)."""
   from matplotlib.ticker import EngFormatter
@@ -477,6 +478,8 @@ def _finish(fig, out, name, xlabel=STEPS_LABEL):
     path = os.path.join(out, f"{name}.{ext}")
     fig.savefig(path, dpi=150, metadata={"CreationDate": None} if ext == "pdf" else None)
     paths.append(path)
+  import matplotlib.pyplot as plt
+  plt.close(fig)
   return paths
 
 
@@ -528,9 +531,7 @@ def _iqm_figure(plt, task, curves_, table, out, xlabel=STEPS_LABEL) -> list[str]
                [r["p_ours"] for r in baselines], [colors[r["method"]] for r in baselines])
     axes[2].axvline(0.5, color="gray", ls="--", lw=1)
     axes[2].set(title=f"P(ours > method), final {SUCCESS}, {INTERVAL}", xlim=(-0.05, 1.05))
-  paths = _finish(fig, out, f"{task.lower()}_iqm", xlabel)
-  plt.close(fig)
-  return paths
+  return _finish(fig, out, f"{task.lower()}_iqm", xlabel)
 
 
 def _ablation_figure(plt, task, curves_, out, xlabel=STEPS_LABEL) -> list[str]:
@@ -542,9 +543,7 @@ def _ablation_figure(plt, task, curves_, out, xlabel=STEPS_LABEL) -> list[str]:
          ylabel=SUCCESS, ylim=(-0.05, 1.05))
   ax.grid(alpha=0.3)
   _legend_below(fig, [ax], 2)
-  paths = _finish(fig, out, f"{task.lower()}_ablation", xlabel)
-  plt.close(fig)
-  return paths
+  return _finish(fig, out, f"{task.lower()}_ablation", xlabel)
 
 
 def _seeds_figure(plt, rows, task, methods, out, xlabel=STEPS_LABEL) -> list[str]:
@@ -570,9 +569,7 @@ def _seeds_figure(plt, rows, task, methods, out, xlabel=STEPS_LABEL) -> list[str
   for row in axes:
     row[0].set_ylabel(f"{SUCCESS}, each seed")
   fig.suptitle(f"{task}: {SUCCESS} of every seed")
-  paths = _finish(fig, out, f"{task.lower()}_seeds", xlabel)
-  plt.close(fig)
-  return paths
+  return _finish(fig, out, f"{task.lower()}_seeds", xlabel)
 
 
 def figure_folders(dirs, out=None) -> dict:
@@ -620,9 +617,7 @@ def _success_figure(plt, rows, task, present, out, xlabel=STEPS_LABEL) -> list[s
   for ax in (ax1, ax2):
     ax.grid(alpha=0.3)
   _legend_below(fig, [ax1], 4)
-  paths = _finish(fig, out, f"{task.lower()}_success", xlabel)
-  plt.close(fig)
-  return paths
+  return _finish(fig, out, f"{task.lower()}_success", xlabel)
 
 
 def _modes_figure(plt, rows, task, present, out, xlabel=STEPS_LABEL) -> list[str]:
@@ -649,9 +644,7 @@ def _modes_figure(plt, rows, task, present, out, xlabel=STEPS_LABEL) -> list[str
                         else "env steps run in the mode (cumulative)")
   _legend_below(fig, [axes[0][0]], 3)
   fig.suptitle(f"{task}: the modes chosen, mean over seeds, {INTERVAL}")
-  paths = _finish(fig, out, f"{task.lower()}_modes", xlabel)
-  plt.close(fig)
-  return paths
+  return _finish(fig, out, f"{task.lower()}_modes", xlabel)
 
 
 def _draw(rows, out, xlabel=STEPS_LABEL) -> list[str]:

@@ -355,6 +355,4 @@ def figures(rows, out, reps=stats.REPS) -> list[str]:
     axes[1][1].remove()
   fig.suptitle(f"{TASK}: the paper's code and ours, mean over seeds, {plot.INTERVAL}")
   plot._legend_below(fig, fig.axes, 4)
-  paths = plot._finish(fig, out, FIGURE, plot.AXES["paper"])
-  plt.close(fig)
-  return paths
+  return plot._finish(fig, out, FIGURE, plot.AXES["paper"])
