@@ -36,7 +36,7 @@ def main(argv=None) -> None:
   argv = sys.argv[1:] if argv is None else argv
   cut = argv.index("--") if "--" in argv else len(argv)
   ours, theirs = argv[:cut], argv[cut + 1:]
-  p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+  p = argparse.ArgumentParser(description=common.description(__doc__))
   p.add_argument("--ref", required=True, help="the git revision to compare with (e.g. HEAD)")
   p.add_argument("--rounds", type=int, default=3)
   p.add_argument("--metric", default="env_steps_per_s")

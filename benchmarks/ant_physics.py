@@ -82,7 +82,7 @@ def row(p: dict, point: dict | None, chunk: int, roofline: float) -> dict:
 
 
 def main(argv=None):
-  p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+  p = argparse.ArgumentParser(description=common.description(__doc__))
   p.add_argument("--methods", nargs="+", default=["hiro", "ours"], choices=methods.METHODS)
   p.add_argument("--seeds", nargs="+", type=int, default=[4, 8])
   p.add_argument("--physics", default="c", choices=("c", "mjx"))

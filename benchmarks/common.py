@@ -26,6 +26,11 @@ ALL_MODES_LIVE = {"warmup_steps": 0, "eval_every": 10**9, "top.starting_steps": 
 BUFFERS = ("low.buffer_size", "middle.buffer_size")
 
 
+def description(doc: str) -> str:
+  """A benchmark's ``--help`` description: its docstring's first paragraph on one line."""
+  return " ".join(doc.strip().split("\n\n")[0].split())
+
+
 def paper_config(method: str, task: str, overrides: dict | None = None) -> AgentConfig:
   """The paper preset's config of ``method`` on ``task`` (``methods.build_config``) with the
   replay buffers its task declares, rings of a fixed size (a benchmark runs a few chunks, not

@@ -105,7 +105,7 @@ def compare(env, config, seeds: int, chunk: int, candidates: list[tuple[dict, di
 
 
 def main(argv=None):
-  p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+  p = argparse.ArgumentParser(description=common.description(__doc__))
   p.add_argument("--env", default="AntPush")
   p.add_argument("--method", default="ours", choices=methods.METHODS)
   p.add_argument("--seeds", type=int, default=1)

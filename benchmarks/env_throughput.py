@@ -75,7 +75,7 @@ def measure(env, batch: int, steps: int, repeats: int) -> dict:
 
 
 def main(argv=None):
-  p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+  p = argparse.ArgumentParser(description=common.description(__doc__))
   p.add_argument("--envs", nargs="+", default=["AntFlat", "AntPush", "AntFall", "brax-ant"])
   p.add_argument("--batches", nargs="+", type=int, default=None)
   p.add_argument("--steps", type=int, default=20, help="env steps per timed call")

@@ -42,7 +42,7 @@ def _time(argv: list[str], root: str, repeats: int) -> dict:
 
 
 def main(argv=None) -> None:
-  p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+  p = argparse.ArgumentParser(description=common.description(__doc__))
   p.add_argument("--repeats", type=int, default=5)
   p.add_argument("--ref", default=None, help="a git revision to time as well (e.g. HEAD~5)")
   p.add_argument("--out-dir", default=common.RESULTS)

@@ -78,7 +78,10 @@ def main(argv=None) -> None:
   argv = sys.argv[1:] if argv is None else argv
   cut = argv.index("--") if "--" in argv else len(argv)
   mine, ours = argv[:cut], argv[cut + 1:] or OURS
-  p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+  p = argparse.ArgumentParser(
+      prog="python -m benchmarks.paper_code",
+      usage="%(prog)s [options] [-- BENCHMARK ARGS (ours' side; default: "
+            + " ".join(OURS) + ")]", description=common.description(__doc__))
   p.add_argument("--rounds", type=int, default=2)
   p.add_argument("--steps", type=int, default=4000, help="the code's learning steps")
   p.add_argument("--warmup", type=int, default=1000, help="the code's warm-up (start_timestep)")

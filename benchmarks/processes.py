@@ -76,7 +76,7 @@ def _layout(args, n_proc: int, devices: int) -> float:
 
 
 def main(argv=None):
-  p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+  p = argparse.ArgumentParser(description=" ".join(__doc__.split("\n\n")[0].split()))
   p.add_argument("--seeds", type=int, default=16)
   p.add_argument("--method", default="hiro")
   p.add_argument("--chunk", type=int, default=400, help="env steps per timed call")

@@ -191,7 +191,7 @@ def print_profile(r):
 
 
 def main(argv=None):
-  p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+  p = argparse.ArgumentParser(description=common.description(__doc__))
   p.add_argument("--env", default="PointPush")
   p.add_argument("--method", default="hiro", choices=methods.METHODS)
   p.add_argument("--seeds", nargs="+", type=int, default=[1, 16])

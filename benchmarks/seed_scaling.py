@@ -115,7 +115,7 @@ def measure(env_name, method, seeds, hidden, chunk, repeats, roofline) -> list[d
 
 
 def main(argv=None):
-  p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+  p = argparse.ArgumentParser(description=common.description(__doc__))
   p.add_argument("--envs", nargs="+", default=["PointPush"])
   p.add_argument("--methods", nargs="+", default=["ours", "hiro"], choices=methods.METHODS)
   p.add_argument("--seeds", nargs="+", type=int, default=[1, 4, 16])

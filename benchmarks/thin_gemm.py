@@ -87,7 +87,7 @@ def measure(seeds: int, B: int, K: int, N: int, inner: int, repeats: int,
 
 
 def main(argv=None) -> None:
-  p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+  p = argparse.ArgumentParser(description=common.description(__doc__))
   p.add_argument("--seeds", nargs="+", type=int, default=[1, 4])
   p.add_argument("--shape", nargs=3, type=int, default=[100, 300, 300], metavar=("B", "K", "N"),
                  help="rows (the TD3 batch), fan in, fan out (default: the Low's 300 x 300)")

@@ -94,7 +94,7 @@ def measure(env_name: str, method: str, seeds: int, num_envs: int, chunk: int,
 
 
 def main(argv=None):
-  p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+  p = argparse.ArgumentParser(description=common.description(__doc__))
   p.add_argument("--envs", nargs="+", default=["PointPush", "AntPush"])
   p.add_argument("--methods", nargs="+", default=["ours", "hiro"], choices=methods.METHODS)
   p.add_argument("--seeds", nargs="+", type=int, default=[1, 4, 16])
