@@ -99,8 +99,9 @@ def compare(env, config, seeds: int, chunk: int, candidates: list[tuple[dict, di
            "env_steps_per_s": {"baseline": seeds * chunk / b[:, 0].min(),
                                "candidate": seeds * chunk / c[:, 0].min()}}
     rows.append(row)
-    print(f"{options or ''}{overrides or ''}: same bits {row['same_bits']}, speedup wall {row['speedup_wall']:.3f}, "
-          f"CPU {row['speedup_cpu']:.3f} (median of {rounds} rounds)", flush=True)
+    print(f"{options or ''}{overrides or ''}: same bits {row['same_bits']}, speedup wall "
+          f"{row['speedup_wall']:.3f}, CPU {row['speedup_cpu']:.3f} (median of {rounds} rounds)",
+          flush=True)
   return rows
 
 
@@ -115,7 +116,7 @@ def main(argv=None):
                  help="a candidate: name=value[,name=value...] added to the trainer's options")
   p.add_argument("--try-config", dest="configs", action="append", default=[],
                  metavar="OVERRIDES", help="a candidate: dotted config overrides "
-                 "path=value[,path=value...] (e.g. low.matmul=bfloat16)")
+                 "path=value[,path=value...] (e.g. low.target_noise=batch)")
   p.add_argument("--cpu-devices", type=int, default=1, metavar="N")
   p.add_argument("--out", default=common.RESULTS)
   args = p.parse_args(argv)

@@ -18,8 +18,10 @@ Each round runs both sides, in the other order in the next round:
 It needs the reference venv and the fetched code (``python -m reference.setup``). Another
 process on the machine slows both sides of a round alike: read the ratios (ours / the code) per
 round and their median; at a heavy load read the CPU-second ones, which preemption does not
-stretch (a thread pool's spinning counts, on both sides). The issue's "per process" comparison is
-the wall ratio on an idle machine. Writes ``benchmarks/results/paper_code_<platform>_<date>.json``.
+stretch (a thread pool's spinning counts, on both sides). Per process, the comparison that
+counts is the wall ratio on an idle machine.
+
+Writes ``benchmarks/results/paper_code_<platform>_<date>.json``.
 """
 
 from __future__ import annotations

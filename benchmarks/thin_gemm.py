@@ -29,9 +29,10 @@ import numpy as np
 from jax.sharding import NamedSharding, PartitionSpec
 
 from benchmarks import common
+from benchmarks.seed_scaling import matmul_gflops
 from nonmono_jax.host import run
 
-FORMS = {  # name: (lhs shape, rhs shape, einsum) for rows B, fan in K, fan out N
+FORMS = {  # name: ((B, K, N) -> (lhs shape, rhs shape), einsum): rows B, fan in K, fan out N
     "forward x @ W": (lambda B, K, N: ((B, K), (K, N)), "bk,kn->bn"),
     "input grad dy @ W.T": (lambda B, K, N: ((B, N), (K, N)), "bn,kn->bk"),
     "weight grad x.T @ dy": (lambda B, K, N: ((B, K), (B, N)), "bk,bn->kn"),
@@ -67,15 +68,11 @@ def form_program(spec: str, seeds: int, shapes, inner: int):
   return jax.jit(program), (a, b)
 
 
-def measure(seeds: int, B: int, K: int, N: int, inner: int, repeats: int,
-            roofline_n: int = 1024) -> list[dict]:
-  x = jax.random.normal(jax.random.PRNGKey(0), (roofline_n, roofline_n))
-  big = jax.jit(lambda a: a @ a)
+def measure(seeds: int, B: int, K: int, N: int, inner: int, repeats: int) -> list[dict]:
   rows = []
   for name, (shapes, spec) in FORMS.items():
     f, args = form_program(spec, seeds, shapes(B, K, N), inner)
-    t_big, t = timed(big, (x,), repeats), timed(f, args, repeats)
-    roof = 2 * roofline_n**3 / t_big / 1e9
+    roof, t = matmul_gflops(repeats=repeats), timed(f, args, repeats)
     gflops = 2 * seeds * B * K * N * inner / t / 1e9
     rows.append({"form": name, "seeds": seeds, "devices": jax.device_count(), "rows": B,
                  "fan_in": K, "fan_out": N, "gflops": gflops, "roofline_gflops": roof,
