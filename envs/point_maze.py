@@ -244,12 +244,14 @@ def point_maze_xml(layout: maze.MazeLayout) -> str:
   return f"""<mujoco model="point_maze">
   <visual><global offwidth="640" offheight="480"/></visual>
   <asset>
-    <texture builtin="checker" height="100" name="texplane" rgb1="0 0 0" rgb2="0.8 0.8 0.8" type="2d" width="100"/>
+    <texture builtin="checker" height="100" name="texplane" rgb1="0 0 0" rgb2="0.8 0.8 0.8"
+             type="2d" width="100"/>
     <material name="MatPlane" reflectance="0.2" texrepeat="30 30" texture="texplane"/>
   </asset>
   <worldbody>
     <light directional="true" diffuse="1 1 1" dir="0 0 -1" pos="0 0 20"/>
-    <geom name="floor" type="plane" size="{ext:g} {ext:g} 40" material="MatPlane" rgba="0.8 0.9 0.8 1"/>
+    <geom name="floor" type="plane" size="{ext:g} {ext:g} 40" material="MatPlane"
+          rgba="0.8 0.9 0.8 1"/>
     {maze.maze_worldbody_xml(layout, True, (1, 1), (1, 1))}
     <body name="point" pos="0 0 {z:g}">
       <joint name="point_x" type="slide" axis="1 0 0" limited="false"/>

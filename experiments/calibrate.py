@@ -1,9 +1,9 @@
 """The study's budget rule, applied to calibration runs: ``python -m experiments.calibrate DIR``.
 
 The rule (docs/results.md, "The study", step 1, fixed before the comparison): the budget B of a
-task is the smallest of 100K, 200K, 500K and 1M env steps at which ours or HIRO reaches a mean S_E over
-its seeds, averaged over the five evaluations ending at that step, at least 0.2 above the
-random policy's success rate; the comparison runs at min(B, 500K); if neither method reaches
+task is the smallest of 100K, 200K, 500K and 1M env steps at which ours or HIRO reaches a mean
+S_E over its seeds, averaged over the five evaluations ending at that step, at least 0.2 above
+the random policy's success rate; the comparison runs at min(B, 500K); if neither method reaches
 the bar by 1M the task is "not learned at CPU scale" and the comparison runs at 200K.
 
 ``DIR`` holds the calibration run folders of one or more tasks (any depth, as ``plot``). For

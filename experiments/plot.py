@@ -412,7 +412,8 @@ def seeds_table(rows) -> str:
   paper's loss modification is meant to avoid), and the env step of each seed's first
   evaluation at 0.5 or more (- for never)."""
   lines = ["| task | method | final S_E per seed | seeds ending >= 0.5 | fell back (reached 0.5, "
-           "end below) | first evaluation >= 0.5 per seed (env step) |", "|---|---|---|---|---|---|"]
+           "end below) | first evaluation >= 0.5 per seed (env step) |",
+           "|---|---|---|---|---|---|"]
   for task in sorted({r["task"] for r in rows}):
     for m in variants(rows, task):
       steps, values = per_seed(rows, task, m, "eval_success")

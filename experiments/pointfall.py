@@ -1,4 +1,5 @@
-"""`python -m experiments.pointfall`: the paper's experiment on PointFall (see `experiments/cli.py`).
+"""`python -m experiments.pointfall`: the paper's experiment on PointFall
+(see `experiments/cli.py`).
 
     python -m experiments.pointfall --method ours hiro ref-uniform ref-ppo --preset quick
     python -m experiments.pointfall --help          # every option and config field

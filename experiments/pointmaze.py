@@ -1,4 +1,5 @@
-"""`python -m experiments.pointmaze`: the paper's experiment on PointMaze (see `experiments/cli.py`).
+"""`python -m experiments.pointmaze`: the paper's experiment on PointMaze
+(see `experiments/cli.py`).
 
     python -m experiments.pointmaze --method ours hiro ref-uniform ref-ppo --preset quick
     python -m experiments.pointmaze --help          # every option and config field

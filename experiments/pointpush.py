@@ -1,4 +1,5 @@
-"""`python -m experiments.pointpush`: the paper's experiment on PointPush (see `experiments/cli.py`).
+"""`python -m experiments.pointpush`: the paper's experiment on PointPush
+(see `experiments/cli.py`).
 
     python -m experiments.pointpush --method ours hiro ref-uniform ref-ppo --preset quick
     python -m experiments.pointpush --help          # every option and config field

@@ -40,7 +40,7 @@ def test_profile_phases_follow_the_gated_functions():
 
 %fused_computation.1 (p: f32[2]) -> f32[2] {
   %p = f32[2]{0} parameter(0)
-  ROOT %d = f32[2]{0} multiply(%p, %p), metadata={op_name="jit(local_chunk)/jit(low_update)/dot_general"}
+  ROOT %d = f32[2]{0} multiply(%p, %p), metadata={op_name="jit(chunk)/jit(low_update)/dot_general"}
 }
 
 %region_5.1 (a: f32[2]) -> f32[2] {

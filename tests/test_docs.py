@@ -32,7 +32,8 @@ from tests_support import CACHE_DIR, ROOT, TINY_RUN
 
 pytestmark = pytest.mark.docs
 
-MARK = re.compile(r"^<!-- (?:(?P<run>run)(?P<slow> slow)?(?::(?P<subs>.*))?|not run: (?P<why>.+)) -->$")
+MARK = re.compile(
+    r"^<!-- (?:(?P<run>run)(?P<slow> slow)?(?::(?P<subs>.*))?|not run: (?P<why>.+)) -->$")
 TASK_COMMAND = re.compile(r"python -m experiments\.(?:ant|point)(?:push|fall|maze)\b")
 DOCS = ["README.md", *sorted(os.path.relpath(p, ROOT) for p in glob.glob(f"{ROOT}/docs/*.md"))]
 

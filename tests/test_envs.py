@@ -169,7 +169,8 @@ def test_ant_reset_noise(compiled_env, name, physics):
 def _push_block(c, state, force, steps):
   """Step the compiled env with zero torques and a force on the block's centre."""
   m = c.env.mj_model
-  body = m.body([m.body(b).name for b in range(m.nbody) if m.body(b).name.startswith("block")][0]).id
+  block = [m.body(b).name for b in range(m.nbody) if m.body(b).name.startswith("block")][0]
+  body = m.body(block).id
   xfrc = np.zeros((SMOKE_BATCH, m.nbody, 6), np.float32)
   xfrc[:, body, :3] = force
   zero = jp.zeros((SMOKE_BATCH, 8))

@@ -24,8 +24,9 @@ CHUNK = 4_000
 
 def _train(method: str, seeds: int, steps: int = STEPS):
   env = envs.make("PointMaze", episode_length=methods.TASKS["PointMaze"].episode_length)
-  trainer = train.make_trainer(env, methods.build_config("paper", method, "PointMaze")[0], num_seeds=seeds,
-                               chunk_steps=CHUNK, compiler_options=OPTIMISED)
+  config = methods.build_config("paper", method, "PointMaze")[0]
+  trainer = train.make_trainer(env, config, num_seeds=seeds, chunk_steps=CHUNK,
+                               compiler_options=OPTIMISED)
   states = trainer.init(jax.random.PRNGKey(0))
   for t0 in range(0, steps, CHUNK):
     states, metrics = trainer.chunk(states, t0)

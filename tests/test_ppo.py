@@ -1,4 +1,5 @@
-"""nonmono_jax.core.ppo: returns, the clipped loss, Train_T's weights, the std schedule, learning."""
+"""nonmono_jax.core.ppo: returns, the clipped loss, Train_T's weights, the std schedule,
+learning."""
 
 from __future__ import annotations
 

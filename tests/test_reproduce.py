@@ -1,4 +1,5 @@
-"""``experiments.reproduce``: a run folder re-run here gives its rows, and a changed row is named."""
+"""``experiments.reproduce``: a run folder re-run here gives its rows, and a changed row is
+named."""
 
 import os
 import shutil

@@ -1,4 +1,5 @@
-"""The Ref methods' informed switch at Middle decisions (``modes/trigger.py``), as the paper's code."""
+"""The Ref methods' informed switch at Middle decisions (``modes/trigger.py``), as the paper's
+code."""
 
 import jax
 import jax.numpy as jp

@@ -4,7 +4,8 @@ The Ref:Uniform and Ref:PPO baselines of Kim et al. (2023) are "X, intra(100), i
 X = start in explore mode (in the paper's code: one starting phase of 250K steps after
 warm-up), intra(100) = a switch happens inside an episode and an explore period lasts
 ``explore_steps`` (100) steps, informed = the exploit -> explore switch is triggered by a
-signal (``modes/trigger.py`` applies it at Middle decisions, as the paper's code does). The signal is the value promise discrepancy
+signal (``modes/trigger.py`` applies it at Middle decisions, as the paper's code does). The
+signal is the value promise discrepancy
 
   D(t-k, t) = | V(s_{t-k}) - sum_{i=0}^{k-1} gamma^i r_{t-k+i} - gamma^k V(s_t) |,
 

@@ -9,9 +9,9 @@
 
 Inside a chunk the global step ``t`` is the scan's input and is not batched over seeds, so
 every horizon gate in ``agent.step`` stays a real branch (docs/spec.md, section 6).
-``metrics`` are per seed, reduced over the chunk as each declares (``metrics.Metric``): a level's metrics
-(``low/critic_loss``, ``top/loss``, ``horizon/p_TD3``, ...) are averaged over the steps where
-that level updated (``<level>/updated`` counts them), ``count/<mode>`` (env steps run in each
+``metrics`` are per seed, reduced over the chunk as each declares (``metrics.Metric``): a level's
+metrics (``low/critic_loss``, ``top/loss``, ``horizon/p_TD3``, ...) are averaged over the steps
+where that level updated (``<level>/updated`` counts them), ``count/<mode>`` (env steps run in each
 mode), ``decisions/<mode>`` (Middle decisions) and ``switch/switches`` are summed, the rest
 (``reward``, ``low/reward``, ...) are averaged over all steps. Every metric the step computes
 is in the reduced dict.

@@ -155,9 +155,9 @@ class RunSpec:
 
 # (preset, robot) -> (dotted agent overrides, run size); the paper's length is the task's.
 # paper: a row per evaluation (eval_every), 5 seeds (our choice: the paper does not say how
-# many it ran) and a checkpoint every 100K steps on the ant. quick: a 2-core CPU runs a few methods of a point task in about 10 minutes; on
-# the ant it shows the whole pipeline (warm-up, starting mode, all modes live, evaluations) in
-# minutes, not learning.
+# many it ran) and a checkpoint every 100K steps on the ant. quick: a 2-core CPU runs a few
+# methods of a point task in about 10 minutes; on the ant it shows the whole pipeline (warm-up,
+# starting mode, all modes live, evaluations) in minutes, not learning.
 PRESET_TABLE = {
     ("paper", "point"): ({}, {"seeds": 5, "chunk": 2_000, "checkpoint_every": 2_000}),
     ("paper", "ant"): ({}, {"seeds": 5, "chunk": 10_000, "checkpoint_every": 100_000}),

@@ -266,7 +266,8 @@ def from_json(payload, out: str, task: str | None = None) -> Plan:
     moved = provenance.host_differs(payload)
     if moved:
       warnings.append(f"{path}: started on another machine type ({moved}): the rows after "
-                      f"this resume are rounded as on this one, so the run as a whole reproduces on neither")
+                      "this resume are rounded as on this one, so the run as a whole "
+                      "reproduces on neither")
   except (ValueError, TypeError, KeyError) as e:
     raise ValueError(f"{path}: {e}") from None
   return Plan(task=payload["task"], preset=payload["preset"], seed=payload["seed"], out=out,
@@ -284,8 +285,8 @@ def _saved_config(payload, name: str, spec, overrides: dict, widen: dict):
   variant = payload.get("variants", {}).get(name, {"method": name, "overrides": {}})
   overrides = {**overrides, **flatten(variant["overrides"])}
   try:
-    today, _ = methods.build_config(payload["preset"], variant["method"], payload["task"], overrides,
-                            dataclasses.asdict(spec), widen)
+    today, _ = methods.build_config(payload["preset"], variant["method"], payload["task"],
+                                    overrides, dataclasses.asdict(spec), widen)
   except ValueError as e:
     today, notes = None, [f"cannot be rebuilt from today's presets ({e}); config.json is used"]
   try:
