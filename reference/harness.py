@@ -342,22 +342,20 @@ class Harness:
   def _rate(self, key_mark, key_t, key_busy):
     """Training env steps/s since a mark, leaving out evaluation and checkpoint time."""
     now = time.time()
-    busy = self.clock[key_busy]
-    seconds = now - self.clock[key_mark] - busy
+    seconds = now - self.clock[key_mark] - self.clock[key_busy]
     steps = self.t - self.clock[key_t]
     self.clock[key_mark], self.clock[key_t], self.clock[key_busy] = now, self.t, 0.0
-    return round(steps / seconds, 2) if seconds > 0 and steps > 0 else ""
+    return _per(steps, seconds)
 
-  def _cpu_rate(self):
-    """Training env steps per CPU-second of this process (all its threads) since the last
-    window, leaving out evaluation and checkpoints: unlike the wall rate, not stretched by
-    other processes' preemption (``benchmarks.paper_code`` reads it). Call before ``_rate``
-    moves the window's mark."""
+  def _window_rates(self):
+    """(training env steps per wall-second, per CPU-second of this process, all its threads)
+    since the last window, leaving out evaluations and checkpoints. The CPU rate is not
+    stretched by other processes' preemption (``benchmarks.paper_code`` reads it)."""
     now = time.process_time()
-    seconds = now - self.clock["cpu_mark"] - self.clock["cpu_busy"]
-    steps = self.t - self.clock["mark_t"]
+    cpu_seconds = now - self.clock["cpu_mark"] - self.clock["cpu_busy"]
+    cpu = _per(self.t - self.clock["mark_t"], cpu_seconds)  # before _rate moves the mark
     self.clock["cpu_mark"], self.clock["cpu_busy"] = now, 0.0
-    return round(steps / seconds, 2) if seconds > 0 and steps > 0 else ""
+    return self._rate("mark", "mark_t", "busy"), cpu
 
   def _observed_correction(self, correction):
     """The code's ``off_policy_correction``, called at every segment's end with s_0 (the
@@ -382,6 +380,7 @@ class Harness:
     local = frame.f_locals
     n, w = self.window["n"], self.window
     k = w["segments"]
+    wall_rate, cpu_rate = self._window_rates()
     row = {
         "t": t, "step": t - self.config.start_timestep,
         "low_intrinsic_reward_mean": repr(self.window["reward"] / n) if n else "",
@@ -395,8 +394,8 @@ class Harness:
         "success_rate": local["success_rate"],
         "higher_success_rate": local["higher_success_rate"],
         "mujoco_warnings": sum(self.mujoco_py.warning_counts.values()),
-        "train_steps_per_cpu_s": self._cpu_rate(),
-        "train_steps_per_s": self._rate("mark", "mark_t", "busy"), "wall_s": self._wall()}
+        "train_steps_per_cpu_s": cpu_rate, "train_steps_per_s": wall_rate,
+        "wall_s": self._wall()}
     self.window = _new_window()
     self.logs.window(row)
     print(f"t={t} step={row['step']} steps/s={row['train_steps_per_s']} "
@@ -438,8 +437,7 @@ class Harness:
         self.hiro.__dict__.pop("range", None)
       seconds = time.time() - start
       self._busy(seconds, time.process_time() - cpu)
-      target = np.asarray(args[3].cpu().numpy() if key == "td3" else args[3].cpu().numpy(),
-                          dtype=np.float64)
+      target = np.asarray(args[3].cpu().numpy(), dtype=np.float64)  # both evaluations' 4th
       distances = [float(np.linalg.norm(xyz - target)) for xyz in episodes]
       self.evals[key] = {"rate": rate, "distances": distances, "seconds": seconds}
       if key == "ppo":
@@ -540,6 +538,11 @@ def _harness_commit():
   except (OSError, subprocess.CalledProcessError):
     return None
   return {"commit": head, "reference_dirty": bool(dirty)}
+
+
+def _per(steps, seconds):
+  """A rate rounded for the CSV, or empty where there is nothing to divide."""
+  return round(steps / seconds, 2) if seconds > 0 and steps > 0 else ""
 
 
 def _new_window():
