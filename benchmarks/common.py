@@ -47,14 +47,19 @@ def paper_env(env_name: str, physics: str = "c"):
   return plan.make_env(env_name, 1000, physics if env_name.startswith("Ant") else None)
 
 
+def paper_task(env_name: str) -> str:
+  """The task whose paper preset the speed benchmarks time ``env_name`` with: its Ant twin (a
+  point task is timed at the Ant's settings, so that the two differ by the physics only)."""
+  return env_name.replace("Point", "Ant")
+
+
 def paper_setup(env_name: str, method: str, physics: str = "c",
                 overrides: dict | None = None):
-  """``paper_env`` and ``method``'s config at the paper's settings: the paper preset of the
-  Ant twin of the task (``paper_config``) with every mode live (``ALL_MODES_LIVE``), then
+  """``paper_env`` and ``method``'s config at the paper's settings: the paper preset of
+  ``paper_task`` (``paper_config``) with every mode live (``ALL_MODES_LIVE``), then
   ``overrides``."""
-  task = env_name.replace("Point", "Ant")
   return (paper_env(env_name, physics),
-          paper_config(method, task, {**ALL_MODES_LIVE, **(overrides or {})}))
+          paper_config(method, paper_task(env_name), {**ALL_MODES_LIVE, **(overrides or {})}))
 
 
 def export_revision(ref: str, folder: str) -> str:

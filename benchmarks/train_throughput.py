@@ -51,7 +51,7 @@ def measure(env_name: str, method: str, seeds: int, num_envs: int, chunk: int,
             repeats: int, time_eval: bool, grad_steps: int | None = None,
             physics: str = "auto") -> dict:
   env = common.paper_env(env_name, physics)
-  task = env_name.replace("Point", "Ant")  # the paper's settings
+  task = common.paper_task(env_name)  # not paper_setup: widen_layer reads the config first
   base = common.paper_config(method, task)
   if grad_steps is not None:  # widened, its buffers sized for a run of one chunk
     spec = methods.RunSpec(steps=chunk, seeds=seeds, episode_length=1000, chunk=chunk,
