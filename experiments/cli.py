@@ -8,7 +8,7 @@
 
 Methods (and sweep variants) whose programs coincide (``lanes.static_key``: ours and its
 ablations; a sweep of traced numbers) run as lanes of one program; the others one after
-another; all into one folder (``nonmono_jax.host.io``): ``config.json``,
+another; all into one folder (``nonmono_jax.host.folder``): ``config.json``,
 ``metrics.csv`` (one row per method, seed and chunk), ``metrics.jsonl`` (every metric) and
 ``checkpoints/<method>/``. The run itself is the library ``nonmono_jax.host.run`` (the plan, from
 the presets or from ``config.json``; the folder; the training loop; the output sinks): this
@@ -21,7 +21,9 @@ before this module loads).
   the memory the run needs (``jax.eval_shape`` of the trainer's init) against what is free.
 - One process writes a run folder at a time (``nonmono_jax.host.runlock``, held for the whole run).
 - ``--resume`` restores the newest checkpoint that restores, and accepts only the flags that
-  do not change the run (``--time-limit``, ``--no-progress``, ``--tensorboard``, ``--wandb``).
+  do not change the run (``--time-limit``, ``--no-progress``, ``--tensorboard``, ``--wandb``,
+  and the multi-process flags ``--distributed``, ``--coordinator``, ``--num-processes``,
+  ``--process-id``: ``RESUME_ALLOWED``).
 - Every failure is one line; exit codes: 0 done, 1 failed run (NaN or Inf in a learner,
   a full disk, Ctrl-C or SIGTERM (``nonmono_jax.host.interrupts``), any other error: the last
   good checkpoint is kept), 2 bad input (a value, a

@@ -11,7 +11,10 @@ current goal (the world point s[:3] + g that the Low is sent to) with the line f
 to it; a key below the maze names each mark (``KEY``).
 
     python -m experiments.render runs/quick --method hiro --seed 1 --out hiro.gif
-    python -m experiments.render results/antpush/ours --seed best     # DIR/ours_seed<N>.gif
+    python -m experiments.render runs/push --method ours --seed best    # DIR/ours_seed<N>.gif
+
+A folder needs its checkpoints (``checkpoints/``): the committed results hold rows and configs
+only.
 
 Both robots are drawn the same way (torso xy for the ant), with matplotlib: no OpenGL needed.
 """

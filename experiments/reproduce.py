@@ -8,7 +8,9 @@ field as text. The rows are the same only on the machine type the run was made o
 so the first line says whether this host is that type.
 
     python -m experiments.reproduce results/pointfall/hiro --steps 20000      # 100 rows
-    python -m experiments.reproduce results/pointmaze/ours --steps 10000 --cpu-devices ...
+    python -m experiments.reproduce results/pointmaze/ours --steps 10000 --method ours
+
+A CPU run is re-run on the device count it trained on (``config.json``'s ``device_count``).
 
 The unit is the folder's command: a seed's key is split from ``--seed`` for the run's seed
 count and a program of 10 lanes rounds differently from one of 1, so the plan is re-run whole

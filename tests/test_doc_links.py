@@ -1,0 +1,133 @@
+"""What the docs point to exists: every relative link, every repository path in backticks and
+every ``module.name`` of this repository's modules, in README.md, ARCHITECTURE.md, docs/ and
+the READMEs of results/, benchmarks/ and notebooks/. A rename that leaves a doc behind fails
+here rather than in a newcomer's first hour."""
+
+from __future__ import annotations
+
+import ast
+import functools
+import glob
+import os
+import re
+
+import pytest
+
+from tests_support import ROOT
+
+pytestmark = pytest.mark.docs
+
+PATTERNS = ("*.md", "docs/*.md", "results/**/README.md", "benchmarks/*.md", "notebooks/*.md")
+DOCS = sorted({os.path.relpath(p, ROOT) for pattern in PATTERNS
+               for p in glob.glob(os.path.join(ROOT, pattern), recursive=True)})
+CODE_DIRS = ("nonmono_jax", "envs", "experiments", "benchmarks", "reference", "tests",
+             "notebooks", ".ci")
+LINK = re.compile(r"\]\(([^)\s]+)\)")
+CODE = re.compile(r"`([^`\n]+)`")
+PATH = re.compile(r"^(?:%s)/[\w./-]*\w$" % "|".join(map(re.escape, CODE_DIRS)))
+DOTTED = re.compile(r"^([a-z_][a-z0-9_]*)\.([A-Za-z_]\w*)(?:\(.*\))?$")
+PACKAGE = re.compile(r"^(?:python -m )?((?:nonmono_jax|envs|experiments|benchmarks|reference)"
+                     r"(?:\.\w+)+)")
+# Names that in the docs are a config's sections (``top.alpha``: the config tests check those)
+# or a value (``state.done``), not the module of that name.
+NOT_MODULES = {"low", "middle", "middle_ppo", "top", "homeostasis", "state"}
+EXTENSIONS = {"py", "json", "jsonl", "csv", "md", "xml", "txt", "toml", "ipynb", "png", "pdf",
+              "gif", "npz", "pt", "sh"}  # ``config.json`` is a file
+
+
+@functools.cache
+def modules() -> dict:
+  """{module name: its files} of the repository's code."""
+  out = {}
+  for folder in CODE_DIRS:
+    for path in glob.glob(os.path.join(ROOT, folder, "**", "*.py"), recursive=True):
+      out.setdefault(os.path.basename(path)[:-3], []).append(path)
+  return out
+
+
+@functools.cache
+def defined(path: str) -> frozenset:
+  """The names ``module.name`` can mean: the module's own (functions, classes, constants,
+  imports) and its classes' (methods and fields: ``agent.step`` is ``Agent.step``)."""
+  return frozenset(_names(ast.parse(open(path).read()).body))
+
+
+def _names(body) -> set:
+  names = set()
+  for node in body:
+    if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+      names.add(node.name)
+    elif isinstance(node, ast.ClassDef):
+      names |= {node.name, *_names(node.body)}
+    elif isinstance(node, (ast.Assign, ast.AnnAssign)):
+      targets = node.targets if isinstance(node, ast.Assign) else [node.target]
+      names |= {n.id for t in targets for n in ast.walk(t) if isinstance(n, ast.Name)}
+      if isinstance(node.value, ast.Dict):  # a lazy package's {exported name: its module}
+        names |= {k.value for k in node.value.keys if isinstance(k, ast.Constant)}
+    elif isinstance(node, (ast.Import, ast.ImportFrom)):
+      names |= {(a.asname or a.name).split(".")[0] for a in node.names}
+    elif isinstance(node, (ast.If, ast.Try)):  # a guarded definition
+      names |= _names(node.body) | _names(getattr(node, "orelse", []))
+  return names
+
+
+def missing(doc: str, root: str = ROOT) -> list[str]:
+  """What ``doc`` (a path under ``root``) names that the repository does not have."""
+  base = os.path.dirname(doc)
+  out = []
+  for number, line in enumerate(open(os.path.join(root, doc)).read().split("\n"), 1):
+    for m in LINK.finditer(line):
+      target = m.group(1).split("#")[0]
+      if target and not re.match(r"^[a-z]+:", target) and not os.path.exists(
+          os.path.normpath(os.path.join(root, base, target))):
+        out.append(f"{doc}:{number}: link {m.group(1)}")
+    for m in CODE.finditer(line):
+      token = m.group(1).strip()
+      if PATH.match(token) and not os.path.exists(os.path.join(ROOT, token)):
+        out.append(f"{doc}:{number}: path {token}")
+      package = PACKAGE.match(token)
+      if package and package.group(1).rsplit(".", 1)[1] not in EXTENSIONS and not _importable(
+          package.group(1)):
+        out.append(f"{doc}:{number}: module {package.group(1)}")
+      dotted = DOTTED.match(token)
+      if dotted and dotted.group(1) not in NOT_MODULES and dotted.group(2) not in EXTENSIONS:
+        files = modules().get(dotted.group(1), [])
+        if len(files) == 1 and dotted.group(2) not in defined(files[0]):
+          out.append(f"{doc}:{number}: {token} ({os.path.relpath(files[0], ROOT)} has no "
+                     f"{dotted.group(2)})")
+  return out
+
+
+def _importable(dotted: str) -> bool:
+  """``a.b.c`` is a module or package of the repository, or a name one of them defines."""
+  parts = dotted.split(".")
+  for n in range(len(parts), 0, -1):
+    path = os.path.join(ROOT, *parts[:n])
+    module = path + ".py" if os.path.exists(path + ".py") else os.path.join(path, "__init__.py")
+    if os.path.exists(module):
+      return n == len(parts) or (n == len(parts) - 1 and parts[-1] in defined(module))
+  return False
+
+
+def test_the_docs_are_found():
+  assert {"README.md", "ARCHITECTURE.md", "docs/spec.md",
+          "results/antpush_reference/README.md"} <= set(DOCS)
+
+
+@pytest.mark.parametrize("doc", DOCS)
+def test_what_the_doc_points_to_exists(doc):
+  assert not missing(doc)
+
+
+def test_a_stale_name_is_found(tmp_path):
+  """The checks can fail: a link, a path, a function and modules that do not exist are named,
+  and what exists is not."""
+  doc = tmp_path / "doc.md"
+  doc.write_text("[a](no_such.md) `nonmono_jax/core/no_such.py` `methods.no_such` "
+                 "`methods.build_config` `top.no_such` `config.json` `nonmono_jax.host.io` "
+                 "`python -m experiments.no_such` [b](doc.md) `nonmono_jax.host.run` "
+                 "`envs.make` `agent.step(state, t, hp)` `python -m experiments.antpush`\n")
+  got = missing("doc.md", str(tmp_path))
+  assert [g.split(": ", 1)[1].split(" (")[0] for g in got] == [
+      "link no_such.md", "path nonmono_jax/core/no_such.py", "methods.no_such",
+      "module nonmono_jax.host.io", "module experiments.no_such"]
