@@ -1,7 +1,7 @@
 """What the docs point to exists: every relative link, every repository path in backticks and
-every ``module.name`` of this repository's modules, in README.md, ARCHITECTURE.md, docs/ and
-the READMEs of results/, benchmarks/ and notebooks/. A rename that leaves a doc behind fails
-here rather than in a newcomer's first hour."""
+every ``module.name`` of this repository's modules, in README.md, ARCHITECTURE.md, docs/, the
+READMEs of results/, benchmarks/ and notebooks/, and the code's docstrings and comments. A
+rename that leaves a doc behind fails here rather than in a newcomer's first hour."""
 
 from __future__ import annotations
 
@@ -35,13 +35,19 @@ EXTENSIONS = {"py", "json", "jsonl", "csv", "md", "xml", "txt", "toml", "ipynb",
               "gif", "npz", "pt", "sh"}  # ``config.json`` is a file
 
 
+def modules_files() -> list[str]:
+  """The repository's Python files (not the paper's code, fetched into ``reference/.code``)."""
+  return sorted(path for folder in CODE_DIRS
+                for path in glob.glob(os.path.join(ROOT, folder, "**", "*.py"), recursive=True)
+                if "/.code/" not in path)
+
+
 @functools.cache
 def modules() -> dict:
   """{module name: its files} of the repository's code."""
   out = {}
-  for folder in CODE_DIRS:
-    for path in glob.glob(os.path.join(ROOT, folder, "**", "*.py"), recursive=True):
-      out.setdefault(os.path.basename(path)[:-3], []).append(path)
+  for path in modules_files():
+    out.setdefault(os.path.basename(path)[:-3], []).append(path)
   return out
 
 
@@ -83,7 +89,8 @@ def missing(doc: str, root: str = ROOT) -> list[str]:
         out.append(f"{doc}:{number}: link {m.group(1)}")
     for m in CODE.finditer(line):
       token = m.group(1).strip()
-      if PATH.match(token) and not os.path.exists(os.path.join(ROOT, token)):
+      if (PATH.match(token) and not os.path.exists(os.path.join(ROOT, token))
+          and not token.startswith("reference/.code")):  # made by reference.setup
         out.append(f"{doc}:{number}: path {token}")
       package = PACKAGE.match(token)
       if package and package.group(1).rsplit(".", 1)[1] not in EXTENSIONS and not _importable(
@@ -117,6 +124,14 @@ def test_the_docs_are_found():
 @pytest.mark.parametrize("doc", DOCS)
 def test_what_the_doc_points_to_exists(doc):
   assert not missing(doc)
+
+
+def test_what_the_docstrings_point_to_exists():
+  """The same in the code (a module's docstring is its command's ``--help``)."""
+  sources = [os.path.relpath(path, ROOT) for path in modules_files()
+             if os.path.abspath(path) != os.path.abspath(__file__)]
+  assert len(sources) > 100
+  assert not [m for source in sources for m in missing(source)]
 
 
 def test_a_stale_name_is_found(tmp_path):
