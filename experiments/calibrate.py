@@ -6,7 +6,7 @@ S_E over its seeds, averaged over the five evaluations ending at that step, at l
 the random policy's success rate; the comparison runs at min(B, 500K); if neither method reaches
 the bar by 1M the task is "not learned at CPU scale" and the comparison runs at 200K.
 
-``DIR`` holds the calibration run folders of one or more tasks (any depth, as ``plot``). For
+``DIR`` holds the calibration run folders of one or more tasks (any depth, as ``curves.load``). For
 each task it prints, per method and candidate budget, that five-evaluation mean, and the
 decision: the budget, "undecided" (the runs have not reached the next candidate yet) or "not
 learned at CPU scale".
@@ -19,7 +19,7 @@ import sys
 
 import numpy as np
 
-from experiments import plot
+from experiments import curves
 from nonmono_jax.host import methods
 
 CANDIDATES = (100_000, 200_000, 500_000, 1_000_000)
@@ -61,7 +61,7 @@ def calibrate(rows, task: str) -> tuple[str, list[str]]:
   header = "| method | seeds | last step | " + " | ".join(f"{c // 1000}K" for c in CANDIDATES)
   lines += [header + " |", "|---" * (3 + len(CANDIDATES)) + "|"]
   for method in METHODS:
-    steps, values = plot.per_seed(rows, task, method, "eval_success")
+    steps, values = curves.per_seed(rows, task, method, "eval_success")
     if not len(steps):
       continue
     means[method] = {c: window_mean(steps, values, c) for c in CANDIDATES}
@@ -80,7 +80,7 @@ def main(argv=None) -> int:
   ap.add_argument("dirs", nargs="+", help="calibration run folders or a tree of them")
   args = ap.parse_args(argv)
   try:
-    rows = plot.load(args.dirs)
+    rows = curves.load(args.dirs)
   except ValueError as e:
     print(f"error: {e}", file=sys.stderr)
     return 2

@@ -30,7 +30,7 @@ import sys
 
 import numpy as np
 
-from experiments import plot, sidebyside, stats
+from experiments import curves, plot, sidebyside, stats
 
 TASK = "AntPush"
 END = 1_000_000  # the protocol's budget: claims 1 and 4 are read there
@@ -129,8 +129,8 @@ def modes_reading(summary_row: dict) -> dict:
 def readings(rows, reps=stats.REPS, axis: str = "env") -> dict:
   """Every claim's reading from the rows of ours and HIRO on AntPush; ``reps``: the bootstrap
   replicates of every interval (the protocol's 2000 by default), or "exact"."""
-  ours = plot.per_seed(rows, TASK, "ours", "eval_success")
-  hiro = plot.per_seed(rows, TASK, "hiro", "eval_success")
+  ours = curves.per_seed(rows, TASK, "ours", "eval_success")
+  hiro = curves.per_seed(rows, TASK, "hiro", "eval_success")
   if not len(ours[0]) or not len(hiro[0]):
     raise ValueError(f"{TASK} rows of both ours and hiro are needed")
   summary = {r["method"]: r for r in plot.summary(rows, reps=reps) if r["task"] == TASK}
@@ -149,7 +149,7 @@ def _iv(iv, digits=2) -> str:
 def markdown(r: dict) -> str:
   f, o, e, m = r["final"], r["onset"], r["early_late"], r["modes"]
   lines = [
-      f"Ant Push, ours and HIRO at {r['steps']} {plot.AXES[r.get('axis', 'env')]} "
+      f"Ant Push, ours and HIRO at {r['steps']} {curves.AXES[r.get('axis', 'env')]} "
       f"({r['seeds'][0]} and {r['seeds'][1]} seeds). Intervals: 95 % stratified bootstrap, "
       f"percentile, "
       + ("every resample (exact)." if r["reps"] == "exact" else
@@ -199,7 +199,7 @@ def main(argv=None) -> int:
   p.add_argument("--reps", type=_reps, default=stats.REPS,
                  help=f"bootstrap replicates of every interval (default {stats.REPS}, the "
                  "protocol's), or 'exact' for every resample")
-  p.add_argument("--axis", choices=tuple(plot.AXES), default="env",
+  p.add_argument("--axis", choices=tuple(curves.AXES), default="env",
                  help="read the claims' steps (1M, 250K, 500K-600K) as env steps (the "
                       "protocol's, default) or on the paper's axis, after the warm-up (1M there "
                       "is env step 1.1M)")
@@ -209,7 +209,7 @@ def main(argv=None) -> int:
       print(sidebyside.markdown(sidebyside.readings(sidebyside.load(args.dirs), args.reps)),
             end="")
       return 0
-    rows = plot.load(args.dirs, args.axis)
+    rows = curves.load(args.dirs, args.axis)
     print(markdown(readings(rows, reps=args.reps, axis=args.axis)), end="")
   except ValueError as e:
     print(f"error: {e}", file=sys.stderr)

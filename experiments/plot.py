@@ -32,44 +32,32 @@ mode after the starting mode (the paper's unit; env steps in brackets) and the m
 then P(A > B) for the other pairs the study compares (``PAIRS``: Ref:Uniform against Ref:PPO),
 then each seed's final S_E and its first evaluation at 0.5 or more (``seeds_table``).
 ``--table`` also prints them, for every task.
+
+The rows come from ``experiments.curves`` (``plot.load`` is its ``load``); the figures share
+``experiments.drawing``'s look with the side-by-side study's.
 """
 
 from __future__ import annotations
 
 import argparse
-import csv
-import json
 import os
 import sys
-from collections import defaultdict
 
 import numpy as np
 
-from experiments import stats
+from experiments import sidebyside, stats
+from experiments.curves import AXES, curves, load, per_seed, seed_table
+from experiments.drawing import (INTERVAL, MODE_COLORS, MODE_STYLES, STEPS_LABEL,
+                                 SUCCESS, band, finish, label, legend_below, seeds_text,
+                                 variants)
 from nonmono_jax.core.config import MODES  # the Middle's sub-policies (JAX-free)
 
-LABELS = {"ours": "Ours", "hiro": "HIRO", "ref-uniform": "Ref:Uniform", "ref-ppo": "Ref:PPO",
-          "ours-no-reward-mod": "Ours w/o reward mod.", "ours-no-loss-mod": "Ours w/o loss mod.",
-          "ours-no-mods": "Ours w/o both"}
 ABLATIONS = ("ours", "ours-no-reward-mod", "ours-no-loss-mod", "ours-no-mods")
-MODE_COLORS = {"TD3": "tab:blue", "PPO": "tab:orange", "RANDOM": "tab:green"}
-STEPS_LABEL = "env steps"  # the x label of every step axis; `_finish` formats those axes
-# ``--axis paper``: the paper's x-axis, env steps after the warm-up (its code logs each value at
-# t - start_timestep, "All logs start after the first 100K steps")
-AXES = {"env": STEPS_LABEL, "paper": "env steps after the warm-up (the paper's axis)"}
 SEEDS_COLUMNS = 4  # panels a row of the per-seed figure
 SEEDS_LEGEND = 12  # seeds a panel of it names in a legend, at most
-MODE_STYLES = {"TD3": "-", "PPO": "--", "RANDOM": ":"}  # overlapping mode lines stay visible
-SUCCESS = "success rate"  # S_E, as a figure's reader calls it (evaluation episodes' success)
-INTERVAL = "95% CI"  # every band and bar is a 95 % stratified-bootstrap interval (stats.SIZE)
 # A 95 % interval at least this wide on [0, 1] tells nothing: with few seeds (4 seeds that end
 # at 0 or 1) the bootstrap's resamples reach both ends. Marked in the figures and summary.md.
 UNINFORMATIVE = 0.9
-
-
-def seeds_text(n: int) -> str:
-  """``1 seed``, ``4 seeds``."""
-  return f"{n} seed{'' if n == 1 else 's'}"
 
 
 def uninformative(estimate) -> bool:
@@ -77,16 +65,6 @@ def uninformative(estimate) -> bool:
   return estimate is not None and float(estimate[2]) - float(estimate[1]) >= UNINFORMATIVE
 
 
-def label(variant: str) -> str:
-  """A method's label; a sweep variant's (``ours+top.alpha=0,0.2,0.35``) with its values."""
-  method, _, values = variant.partition("+")
-  return LABELS.get(method, method) + (f" [{values.replace('+', '; ')}]" if values else "")
-
-
-def variants(rows, task) -> list[str]:
-  """The task's methods in LABELS order, each followed by its sweep variants (in row order)."""
-  names = list(dict.fromkeys(r["method"] for r in rows if r["task"] == task))
-  return [v for m in LABELS for v in names if v.partition("+")[0] == m]
 SUMMARY_NOTE = (
     "Final S_E (at the last evaluation), best S_E (the maximum over evaluations) and early "
     "S_E (at the last evaluation by a quarter of the run, its env step in brackets) per seed, "
@@ -99,165 +77,6 @@ SUMMARY_NOTE = (
     "the intervals do not overlap; \">>\": also at least 3x; \"~\": they overlap). Reading: "
     "A above B where the interval of P(A > B) lies above 0.5, below it the reverse, else they "
     "cannot be told apart.\n\n")
-
-
-REQUIRED = ("task", "method", "seed", "env_step", "eval_success", "eval_return",
-            *(f"cum_steps_{m}" for m in MODES))
-
-
-def load(dirs, axis: str = "env") -> list[dict]:
-  """Every folder's rows, all checked before anything is drawn; raises ValueError naming the
-  file and line. A half-written last line (a run killed mid-row) is skipped, as resume does.
-
-  A folder is a run folder (with ``metrics.csv``) or holds run folders at any depth (a
-  results tree such as ``results/pointpush/<method>/``). Folders that repeat a task and method
-  (independent runs of a job array) add their seeds (``_merged``). ``axis="paper"``: each
-  row's ``env_step`` is counted from the end of its run's warm-up (``paper_axis``), and the
-  rows before it are left out."""
-  if axis not in AXES:
-    raise ValueError(f"axis must be one of {', '.join(AXES)}, got {axis!r}")
-  rows, runs, paths = [], defaultdict(int), []  # (task, method) -> run folders seen with it
-  for d in dirs:
-    for path in _metrics_files(d):
-      read = _read(path)
-      rows.extend(_merged(paper_axis(read, path) if axis == "paper" else read, runs))
-      paths.append(path)
-  if not rows:
-    raise ValueError(f"{', '.join(paths)}: no rows yet (no chunk of the run has finished): "
-                     f"nothing to draw")
-  return rows
-
-
-def warmups(path: str) -> dict:
-  """{method: its warm-up in env steps} from the ``config.json`` beside ``path`` (a
-  ``metrics.csv``): ``warmup_steps`` x ``num_envs`` of each variant's config."""
-  config = os.path.join(os.path.dirname(path), "config.json")
-  try:
-    with open(config) as f:
-      configs = json.load(f)["configs"]
-    return {m: int(c["warmup_steps"]) * int(c.get("num_envs", 1)) for m, c in configs.items()}
-  except (OSError, ValueError, KeyError, TypeError) as e:
-    raise ValueError(f"{config}: the paper's axis needs each run's warm-up from its config.json "
-                     f"({type(e).__name__}: {e})") from None
-
-
-def paper_axis(rows, path: str) -> list[dict]:
-  """``rows`` of the ``metrics.csv`` at ``path`` on the paper's axis: ``env_step`` minus the
-  run's warm-up (``warmups``), the rows inside the warm-up left out."""
-  warm = warmups(path)
-  missing = sorted({r["method"] for r in rows} - set(warm))
-  if missing:
-    raise ValueError(f"{path}: no warm-up for {', '.join(missing)} in its config.json")
-  out = []
-  for r in rows:
-    step = int(r["env_step"]) - warm[r["method"]]
-    if step > 0:
-      out.append({**r, "env_step": str(step)})
-  return out
-
-
-def _merged(rows, runs) -> list[dict]:
-  """A folder's rows, its seeds renamed ``k/seed`` if k earlier folders hold the same task and
-  method (a job array of independent runs, ``--seed`` 0, 1, ...: their seeds merge into one
-  set, not onto each other)."""
-  keys = {(r["task"], r["method"]) for r in rows}
-  earlier = {key: runs[key] for key in keys}
-  for key in keys:
-    runs[key] += 1
-  return [r if not earlier[r["task"], r["method"]] else
-          {**r, "seed": f"{earlier[r['task'], r['method']]}/{r['seed']}"} for r in rows]
-
-
-def _metrics_files(d: str) -> list[str]:
-  """``d/metrics.csv``, or else every ``metrics.csv`` below ``d`` (sorted)."""
-  path = os.path.join(d, "metrics.csv")
-  if os.path.isfile(path):
-    return [path]
-  found = sorted(os.path.join(root, "metrics.csv") for root, _, files in os.walk(d)
-                 if "metrics.csv" in files)
-  if not found:
-    raise ValueError(f"{path} not found (is {d} a run folder?)")
-  return found
-
-
-def _read(path: str) -> list[dict]:
-  try:
-    with open(path, newline="") as f:
-      text = f.read()
-  except (OSError, UnicodeDecodeError) as e:
-    raise ValueError(f"{path}: cannot be read ({e})") from None
-  lines = text.splitlines()
-  header = next(csv.reader(lines[:1]), [])
-  missing = [c for c in REQUIRED if c not in header]
-  if missing:
-    raise ValueError(f"{path}: the header is not a metrics file's (no {', '.join(missing)})")
-  parsed = list(csv.reader(lines[1:]))
-  if parsed and (not text.endswith("\n") or not _row_ok(header, parsed[-1])):
-    parsed = parsed[:-1]  # half-written
-  for i, values in enumerate(parsed):
-    if not _row_ok(header, values):
-      raise ValueError(f"{path}: line {i + 2} is malformed: {lines[i + 1][:60]!r}")
-    bad = [c for c in REQUIRED[4:] if values[header.index(c)] != ""
-           and not np.isfinite(float(values[header.index(c)]))]
-    if bad:
-      raise ValueError(f"{path}: line {i + 2}: {bad[0]} is {values[header.index(bad[0])]} "
-                       f"(not a finite number)")
-  return [dict(zip(header, values)) for values in parsed]
-
-
-def _row_ok(header, values) -> bool:
-  if len(values) != len(header):
-    return False
-  row = dict(zip(header, values))
-  try:
-    int(row["env_step"]), int(row["seed"])
-    for c in REQUIRED[4:]:
-      if row[c] != "":
-        float(row[c])
-  except ValueError:
-    return False
-  return True
-
-
-def _seed_order(seed: str):
-  """Numeric order of seeds, a job array's folders one after the other (0, 1, ..., 10, then
-  1/0, 1/1, ...: ``_merged``)."""
-  return seed.count("/"), [int(part) for part in seed.split("/")]
-
-
-def _seed_table(rows, task, method, column):
-  """(steps, seeds, values): the steps where every seed has a value of ``column``, those
-  seeds in ``_seed_order``, and their values (a row per seed, a column per step)."""
-  by_step = defaultdict(dict)
-  for r in rows:
-    if r["task"] == task and r["method"] == method and r.get(column, "") != "":
-      by_step[int(r["env_step"])][r["seed"]] = float(r[column])
-  n_seeds = max((len(v) for v in by_step.values()), default=0)
-  steps = sorted(s for s, v in by_step.items() if len(v) == n_seeds)
-  seeds = sorted(by_step[steps[0]], key=_seed_order) if steps else []
-  values = np.array([[by_step[s][k] for s in steps] for k in seeds], dtype=float)
-  return np.array(steps, dtype=int), seeds, values.reshape(len(seeds), len(steps))
-
-
-def per_seed(rows, task, method, column):
-  """(steps, values): ``column`` of each seed (a row of ``values``, in ``seed_ids`` order) at
-  each step where every seed has a value (a column)."""
-  steps, _, values = _seed_table(rows, task, method, column)
-  return steps, values
-
-
-def seed_ids(rows, task, method, column="eval_success") -> list[str]:
-  """The seeds of ``per_seed``'s rows of values, in numeric order."""
-  return _seed_table(rows, task, method, column)[1]
-
-
-def curves(rows, task, method, column, reps: int = stats.REPS):
-  """(steps, mean, lower, upper, seeds) over seeds of ``column``: the mean and its pointwise
-  95 % stratified-bootstrap interval, at the steps where every seed has a value."""
-  steps, values = per_seed(rows, task, method, column)
-  if not len(steps):
-    return np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0), 0
-  return (steps, *stats.mean_curve(values, reps=reps), len(values))
 
 
 def _at_end(rows, task, method, column, reps):
@@ -437,53 +256,6 @@ def pairs_table(comparison_rows) -> str:
   return "\n".join(lines)
 
 
-def _band(ax, curve, label, color=None, bounds=(-np.inf, np.inf), **style):
-  """A curve (steps, point, lower, upper, ...) and its interval, the band clipped to
-  ``bounds`` (a success rate's: [0, 1])."""
-  steps, point, lower, upper = curve[:4]
-  line, = ax.plot(steps, point, label=label, color=color, lw=1.6, **style)
-  ax.fill_between(steps, np.clip(lower, *bounds), np.clip(upper, *bounds),
-                  color=line.get_color(), alpha=0.2, lw=0)
-
-
-def _legend_below(fig, axes, ncol: int):
-  """One legend for the figure, below its panels, where it covers no curve: the labelled lines
-  of ``axes``, each label once (a line missing from one panel is named from another)."""
-  entries = {}
-  for ax in axes:
-    for handle, text in zip(*ax.get_legend_handles_labels()):
-      entries.setdefault(text, handle)
-  handles, labels = list(entries.values()), list(entries)
-  fig.legend(handles, labels, loc="lower center", ncol=max(min(ncol, len(labels)), 1),
-             fontsize=8, frameon=False, bbox_to_anchor=(0.5, 0.0))
-
-
-def _finish(fig, out, name, xlabel=STEPS_LABEL):
-  """Save ``name`` as PNG and PDF and close the figure; the PDF without its creation date, so
-  that drawing the same files again writes the same bytes (committed figures change only when
-  the data does).
-  Env-step axes are labelled 250k, 1M: six-digit tick labels run into each other; ``xlabel``
-  names them (``AXES``)."""
-  from matplotlib.ticker import EngFormatter
-  for ax in fig.axes:
-    if ax.get_xlabel() == STEPS_LABEL:
-      ax.xaxis.set_major_formatter(EngFormatter(sep=""))
-      ax.set_xlabel(xlabel)
-  fig.tight_layout()
-  for legend in fig.legends:  # a legend below the panels (_legend_below): room for it
-    fig.canvas.draw()
-    height = legend.get_window_extent().height / fig.bbox.height
-    fig.tight_layout(rect=(0, height + 0.01, 1, 1))
-  paths = []
-  for ext in ("png", "pdf"):
-    path = os.path.join(out, f"{name}.{ext}")
-    fig.savefig(path, dpi=150, metadata={"CreationDate": None} if ext == "pdf" else None)
-    paths.append(path)
-  import matplotlib.pyplot as plt
-  plt.close(fig)
-  return paths
-
-
 def iqm_curves(rows, task, methods) -> dict:
   """Per method with an evaluation: (steps, IQM, lower, upper, seeds) of S_E over seeds, with
   pointwise 95 % stratified-bootstrap intervals."""
@@ -495,8 +267,8 @@ def iqm_curves(rows, task, methods) -> dict:
   return out
 
 
-def _iqm_band(ax, curve, label, color=None):
-  _band(ax, curve, f"{label} ({seeds_text(curve[4])})", color, bounds=(0, 1))
+def _iqmband(ax, curve, label, color=None):
+  band(ax, curve, f"{label} ({seeds_text(curve[4])})", color, bounds=(0, 1))
 
 
 def _intervals(ax, labels, estimates, colors):
@@ -519,11 +291,11 @@ def _iqm_figure(plt, task, curves_, table, out, xlabel=STEPS_LABEL) -> list[str]
   colors = {m: f"C{i}" for i, m in enumerate(curves_)}
   fig, axes = plt.subplots(1, 3 if baselines else 2, figsize=(15 if baselines else 10.5, 4))
   for m, curve in curves_.items():
-    _iqm_band(axes[0], curve, label(m), colors[m])
+    _iqmband(axes[0], curve, label(m), colors[m])
   axes[0].set(title=f"{task}: IQM over seeds, {INTERVAL}", xlabel=STEPS_LABEL,
               ylabel=SUCCESS, ylim=(-0.05, 1.05))
   axes[0].grid(alpha=0.3)
-  _legend_below(fig, axes, 4)
+  legend_below(fig, axes, 4)
   _intervals(axes[1], [label(r["method"]) for r in table], [r["final_s_e"] for r in table],
              [colors[r["method"]] for r in table])
   axes[1].set(title=f"final {SUCCESS}, IQM, {INTERVAL}", xlim=(-0.05, 1.05))
@@ -532,19 +304,19 @@ def _iqm_figure(plt, task, curves_, table, out, xlabel=STEPS_LABEL) -> list[str]
                [r["p_ours"] for r in baselines], [colors[r["method"]] for r in baselines])
     axes[2].axvline(0.5, color="gray", ls="--", lw=1)
     axes[2].set(title=f"P(ours > method), final {SUCCESS}, {INTERVAL}", xlim=(-0.05, 1.05))
-  return _finish(fig, out, f"{task.lower()}_iqm", xlabel)
+  return finish(fig, out, f"{task.lower()}_iqm", xlabel)
 
 
 def _ablation_figure(plt, task, curves_, out, xlabel=STEPS_LABEL) -> list[str]:
   """S_E of ours and its ablations: IQM over seeds with pointwise 95 % intervals."""
   fig, ax = plt.subplots(figsize=(5.5, 4))
   for m, curve in curves_.items():
-    _iqm_band(ax, curve, label(m))
+    _iqmband(ax, curve, label(m))
   ax.set(title=f"{task}: ablations, IQM over seeds, {INTERVAL}", xlabel=STEPS_LABEL,
          ylabel=SUCCESS, ylim=(-0.05, 1.05))
   ax.grid(alpha=0.3)
-  _legend_below(fig, [ax], 2)
-  return _finish(fig, out, f"{task.lower()}_ablation", xlabel)
+  legend_below(fig, [ax], 2)
+  return finish(fig, out, f"{task.lower()}_ablation", xlabel)
 
 
 def _seeds_figure(plt, rows, task, methods, out, xlabel=STEPS_LABEL) -> list[str]:
@@ -558,7 +330,7 @@ def _seeds_figure(plt, rows, task, methods, out, xlabel=STEPS_LABEL) -> list[str
   for ax in axes.flat[len(methods):]:
     ax.set_visible(False)
   for ax, m in zip(axes.flat, methods):
-    steps, seeds, values = _seed_table(rows, task, m, "eval_success")
+    steps, seeds, values = seed_table(rows, task, m, "eval_success")
     for k, (seed, seed_values) in enumerate(zip(seeds, values)):
       ax.plot(steps, seed_values, lw=1.1, color=f"C{k % 10}", label=f"seed {seed}")
     ax.set(title=f"{label(m)} ({seeds_text(len(values))})", xlabel=STEPS_LABEL,
@@ -570,7 +342,7 @@ def _seeds_figure(plt, rows, task, methods, out, xlabel=STEPS_LABEL) -> list[str
   for row in axes:
     row[0].set_ylabel(f"{SUCCESS}, each seed")
   fig.suptitle(f"{task}: {SUCCESS} of every seed")
-  return _finish(fig, out, f"{task.lower()}_seeds", xlabel)
+  return finish(fig, out, f"{task.lower()}_seeds", xlabel)
 
 
 def figure_folders(dirs, out=None) -> dict:
@@ -591,7 +363,6 @@ def plot(dirs, out=None, axis: str | None = None) -> list[str]:
   env-step or the paper's axis (``load``); the files written. The Ant Push study of the
   paper's code beside ours (``sidebyside.is_study``): its figure instead, on the paper's axis,
   into ``out`` or ``figures`` of the first folder (``sidebyside.figures``)."""
-  from experiments import sidebyside  # it imports this module
   if sidebyside.is_study(dirs):
     _paper_axis_only(axis)
     return sidebyside.figures(sidebyside.load(dirs), out or os.path.join(dirs[0], "figures"))
@@ -609,16 +380,16 @@ def _success_figure(plt, rows, task, present, out, xlabel=STEPS_LABEL) -> list[s
   fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4.4))
   for i, m in enumerate(present):
     curve = curves(rows, task, m, "eval_success")
-    _band(ax1, curve, f"{label(m)} ({seeds_text(curve[4])})", f"C{i}", bounds=(0, 1))
-    _band(ax2, curves(rows, task, m, "eval_return"), label(m), f"C{i}")
+    band(ax1, curve, f"{label(m)} ({seeds_text(curve[4])})", f"C{i}", bounds=(0, 1))
+    band(ax2, curves(rows, task, m, "eval_return"), label(m), f"C{i}")
   ax1.set(title=f"{task}: {SUCCESS}, mean over seeds, {INTERVAL}", xlabel=STEPS_LABEL,
           ylabel=f"{SUCCESS} (evaluation)", ylim=(-0.05, 1.05))
   ax2.set(title=f"{task}: evaluation return, mean, {INTERVAL}", xlabel=STEPS_LABEL,
           ylabel="return per episode")
   for ax in (ax1, ax2):
     ax.grid(alpha=0.3)
-  _legend_below(fig, [ax1], 4)
-  return _finish(fig, out, f"{task.lower()}_success", xlabel)
+  legend_below(fig, [ax1], 4)
+  return finish(fig, out, f"{task.lower()}_success", xlabel)
 
 
 def _modes_figure(plt, rows, task, present, out, xlabel=STEPS_LABEL) -> list[str]:
@@ -633,7 +404,7 @@ def _modes_figure(plt, rows, task, present, out, xlabel=STEPS_LABEL) -> list[str
     never = []
     for mode in MODES:
       curve = curves(rows, task, m, f"cum_{unit}_{mode}")
-      _band(ax, curve, mode, MODE_COLORS[mode], bounds=(0, np.inf), ls=MODE_STYLES[mode])
+      band(ax, curve, mode, MODE_COLORS[mode], bounds=(0, np.inf), ls=MODE_STYLES[mode])
       if len(curve[1]) and not np.any(curve[1]):
         never.append(mode)
     if never:
@@ -643,9 +414,9 @@ def _modes_figure(plt, rows, task, present, out, xlabel=STEPS_LABEL) -> list[str
     ax.grid(alpha=0.3)
   axes[0][0].set_ylabel("Middle decisions in the mode (cumulative)" if unit == "decisions"
                         else "env steps run in the mode (cumulative)")
-  _legend_below(fig, [axes[0][0]], 3)
+  legend_below(fig, [axes[0][0]], 3)
   fig.suptitle(f"{task}: the modes chosen, mean over seeds, {INTERVAL}")
-  return _finish(fig, out, f"{task.lower()}_modes", xlabel)
+  return finish(fig, out, f"{task.lower()}_modes", xlabel)
 
 
 def _draw(rows, out, xlabel=STEPS_LABEL) -> list[str]:
@@ -708,7 +479,6 @@ def main(argv=None) -> int:
 
 def _table_text(dirs, axis: str | None) -> str:
   """What ``--table`` prints: ``tables`` of the folders' rows, or the study's readings."""
-  from experiments import sidebyside  # it imports this module
   if sidebyside.is_study(dirs):
     _paper_axis_only(axis)
     return sidebyside.markdown(sidebyside.readings(sidebyside.load(dirs))).rstrip("\n")
@@ -724,3 +494,4 @@ def _paper_axis_only(axis: str | None) -> None:
 
 if __name__ == "__main__":
   sys.exit(main())
+

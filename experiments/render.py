@@ -29,7 +29,7 @@ import jax
 import jax.numpy as jp
 import numpy as np
 
-from experiments import plot as plot_lib
+from experiments import curves
 from nonmono_jax.core import evaluate
 from nonmono_jax.host import checkpoints, plan as plan_lib
 from nonmono_jax.host import programs as programs_lib
@@ -92,11 +92,11 @@ def ranked_seed(run_dir: str, method: str | None, which: str) -> tuple[int, floa
   plan, method, ckpts, step = _saved(run_dir, method)
   ckpts.close()
   covered = step * plan.configs[method].num_envs
-  rows = [r for r in plot_lib.load([run_dir])
+  rows = [r for r in curves.load([run_dir])
           if r["method"] == method and int(r["env_step"]) <= covered]
   scores = {}  # seed -> (S_E at its latest evaluation, mean S_E, that step)
   for k in sorted({int(r["seed"]) for r in rows}):
-    steps, values = plot_lib.per_seed([r for r in rows if int(r["seed"]) == k], plan.task,
+    steps, values = curves.per_seed([r for r in rows if int(r["seed"]) == k], plan.task,
                                       method, "eval_success")
     if len(steps):
       scores[k] = (float(values[0, -1]), float(values[0].mean()), int(steps[-1]))

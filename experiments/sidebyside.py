@@ -9,7 +9,7 @@ Everything is read on the paper's axis, env steps after the 100K warm-up (``x``;
 code logs at t - start_timestep, so its "1M" is env step 1.1M). The reference runs are the
 harness's folders (``reference/``: ``evaluations.csv``, ``windows.csv``, ``config.json``),
 turned into rows of the long form of ``metrics.csv`` (``reference_rows``); ours and HIRO are
-run folders (``experiments.plot.load(..., axis="paper")``).
+run folders (``experiments.curves.load(..., axis="paper")``).
 
 The readings (R1-R6 of the protocol):
 
@@ -50,7 +50,8 @@ from collections import defaultdict
 
 import numpy as np
 
-from experiments import plot, stats
+from experiments import curves, drawing, stats
+from nonmono_jax.core.config import MODES  # the Middle's sub-policies (JAX-free)
 
 TASK = "AntPush"
 REFERENCE = "reference"  # the method name of the paper's code's rows
@@ -62,7 +63,6 @@ LOW_AT = (200_000, 500_000, 1_000_000)  # R5, each over the LOW_SPAN env steps u
 LOW_SPAN = 50_000
 LOW_COLUMNS = {"low_reward": "reward per env step",
                "low_subgoal_progress": "progress per segment, ||g_0|| - ||g_c||"}
-MODES = plot.MODES
 # The reference's mode counts (the code's names: on-policy is the Middle PPO, off-policy TD3)
 REFERENCE_COUNTS = {"TD3": "off_policy_count", "PPO": "on_policy_count",
                     "RANDOM": "random_policy_count"}
@@ -117,7 +117,7 @@ def load(dirs) -> list[dict]:
       rows += reference_rows(folder)
     ours = [root for root, _, files in os.walk(d) if "metrics.csv" in files]
     if ours:
-      rows += plot.load(ours, axis="paper")
+      rows += curves.load(ours, axis="paper")
   if not rows:
     raise ValueError(f"no reference runs and no run folders in {', '.join(dirs)}")
   return rows
@@ -130,7 +130,7 @@ def by_seed(rows, method, column, lo, hi) -> tuple[list[str], np.ndarray]:
   for r in rows:
     if r["method"] == method and r.get(column, "") != "" and lo <= int(r["env_step"]) <= hi:
       values[r["seed"]].append(float(r[column]))
-  seeds = sorted(values, key=plot._seed_order)
+  seeds = sorted(values, key=curves.seed_order)
   return seeds, np.array([np.mean(values[s]) for s in seeds])
 
 
@@ -268,13 +268,13 @@ def is_study(dirs) -> bool:
 
 
 # The figure (``figures``)
-FIGURE = f"{TASK.lower()}_sidebyside"  # as plot.py names its figures
+FIGURE = f"{TASK.lower()}_sidebyside"  # as experiments.plot names its figures
 FIGURE_METHODS = (REFERENCE, "ours", "hiro")  # drawn in this order, those with rows
-FIGURE_NAMES = {REFERENCE: "The paper's code"}  # the others: plot.label
+FIGURE_NAMES = {REFERENCE: "The paper's code"}  # the others: drawing.label
 COLORS = {REFERENCE: "C3", "ours": "C0", "hiro": "C1"}
 # A panel: (its column, title, y label, the bounds its band is clipped to)
-PANELS = (("eval_success", f"(a) S_E, the {plot.SUCCESS} at each evaluation (thin: each seed)",
-           plot.SUCCESS, (0, 1)),
+PANELS = (("eval_success", f"(a) S_E, the {drawing.SUCCESS} at each evaluation (thin: each seed)",
+           drawing.SUCCESS, (0, 1)),
           ("eval_distance", "(b) final distance to the target at each evaluation",
            "distance to the target", (0, np.inf)),
           ("low_reward", "(c) the Low's reward per env step", "reward per env step",
@@ -286,17 +286,17 @@ PANELS = (("eval_success", f"(a) S_E, the {plot.SUCCESS} at each evaluation (thi
 def figure_label(rows, method) -> str:
   """A method's name in the figure's legend with its seeds: ``The paper's code (3 seeds)``."""
   seeds = {r["seed"] for r in rows if r["method"] == method}
-  return f"{FIGURE_NAMES.get(method, plot.label(method))} ({plot.seeds_text(len(seeds))})"
+  return f"{FIGURE_NAMES.get(method, drawing.label(method))} ({drawing.seeds_text(len(seeds))})"
 
 
 def panel_curves(rows, column, reps=stats.REPS) -> dict:
   """{method: (steps, mean, lower, upper, seeds)} of ``column`` for each of FIGURE_METHODS
   with a value of it: the mean over seeds and its pointwise 95 % stratified-bootstrap interval
-  at the steps where every seed has a value (``plot.curves``; where one seed has got further
+  at the steps where every seed has a value (``curves.curves``; where one seed has got further
   than the others, its thin line in (a) shows the rest)."""
   out = {}
   for m in FIGURE_METHODS:
-    curve = plot.curves(rows, TASK, m, column, reps)
+    curve = curves.curves(rows, TASK, m, column, reps)
     if len(curve[0]):
       out[m] = curve
   return out
@@ -310,7 +310,7 @@ def seed_lines(rows, method, column) -> dict:
     if r["method"] == method and r.get(column, "") != "":
       points[r["seed"]].append((int(r["env_step"]), float(r[column])))
   return {s: tuple(np.array(v) for v in zip(*sorted(points[s])))
-          for s in sorted(points, key=plot._seed_order)}
+          for s in sorted(points, key=curves.seed_order)}
 
 
 def _panel(ax, rows, panel, labels, reps) -> bool:
@@ -319,8 +319,8 @@ def _panel(ax, rows, panel, labels, reps) -> bool:
   column, title, ylabel, bounds = panel
   drawn = panel_curves(rows, column, reps)
   for m, curve in drawn.items():
-    plot._band(ax, curve, labels[m], COLORS[m], bounds=bounds)
-  ax.set(title=title, xlabel=plot.STEPS_LABEL, ylabel=ylabel, xlim=(0, AT))
+    drawing.band(ax, curve, labels[m], COLORS[m], bounds=bounds)
+  ax.set(title=title, xlabel=drawing.STEPS_LABEL, ylabel=ylabel, xlim=(0, AT))
   ax.grid(alpha=0.3)
   if not drawn:
     ax.text(0.5, 0.5, "no rows yet", transform=ax.transAxes, ha="center", color="0.4")
@@ -353,6 +353,6 @@ def figures(rows, out, reps=stats.REPS) -> list[str]:
   _success_extras(axes[0][0], rows, labels)
   if not drawn[3]:
     axes[1][1].remove()
-  fig.suptitle(f"{TASK}: the paper's code and ours, mean over seeds, {plot.INTERVAL}")
-  plot._legend_below(fig, fig.axes, 4)
-  return plot._finish(fig, out, FIGURE, plot.AXES["paper"])
+  fig.suptitle(f"{TASK}: the paper's code and ours, mean over seeds, {drawing.INTERVAL}")
+  drawing.legend_below(fig, fig.axes, 4)
+  return drawing.finish(fig, out, FIGURE, curves.AXES["paper"])

@@ -246,7 +246,7 @@ def test_help_lists_every_field_with_its_default(capsys):
 
 
 def test_plots_are_drawn_from_a_run(reference, tmp_path):
-  from experiments import plot
+  from experiments import curves, plot
 
   assert plot.main([reference, "--out", str(tmp_path)]) == 0
   names = sorted(os.listdir(tmp_path))
@@ -255,8 +255,8 @@ def test_plots_are_drawn_from_a_run(reference, tmp_path):
                    "pointmaze_success.pdf", "pointmaze_success.png", "summary.md"]
   assert all(os.path.getsize(tmp_path / n) > 5000 for n in names if n != "summary.md")
   assert "| PointMaze | Ref:PPO | 2 | 800 |" in (tmp_path / "summary.md").read_text()
-  steps, mean, lower, upper, n = plot.curves(_rows(reference), "PointMaze", "ours",
-                                             "cum_steps_RANDOM")
+  steps, mean, lower, upper, n = curves.curves(_rows(reference), "PointMaze", "ours",
+                                               "cum_steps_RANDOM")
   assert n == 2 and list(steps) == [200, 400, 600, 800] and lower[-1] <= mean[-1] <= upper[-1]
   assert mean[-1] > 0
   with pytest.raises(SystemExit) as err:

@@ -1,5 +1,6 @@
 """experiments.plot's statistics: the table (IQM [CI], P(ours > method), mode counts) and the
-IQM and ablation figures, from tiny synthetic metrics.csv files (no training)."""
+IQM and ablation figures, and the rows they read (``experiments.curves``) and the look they
+share (``experiments.drawing``), from tiny synthetic metrics.csv files (no training)."""
 
 import csv
 import os
@@ -7,9 +8,9 @@ import os
 import numpy as np
 import pytest
 
-from experiments import plot
+from experiments import curves, drawing, plot
 
-COLUMNS = (*plot.REQUIRED, *(f"cum_{kind}_after_start_{m}" for kind in ("decisions", "steps")
+COLUMNS = (*curves.REQUIRED, *(f"cum_{kind}_after_start_{m}" for kind in ("decisions", "steps")
                               for m in plot.MODES))
 STEPS = (100, 200, 300, 400)
 # S_E per seed at each evaluation; the first row of each seed comes before any evaluation.
@@ -50,7 +51,7 @@ def runs(tmp_path):
 
 
 def test_summary_gives_iqm_intervals_and_probability_of_improvement(runs):
-  table = {r["method"]: r for r in plot.summary(plot.load(runs))}
+  table = {r["method"]: r for r in plot.summary(curves.load(runs))}
   ours, hiro, ablation = table["ours"], table["hiro"], table["ours-no-mods"]
   assert (ours["seeds"], ours["env_steps"], ablation["seeds"]) == (5, 400, 3)
   # final S_E of ours: 1, 1, 1, 0.8, 0.9; 5 runs cut 1 at each end: mean(0.9, 1, 1) = 0.967.
@@ -91,14 +92,14 @@ def test_readings_follow_the_protocol():
 
 
 def test_ref_uniform_against_ref_ppo(tmp_path):
-  rows = plot.load([_write(tmp_path / "refs", ["ref-uniform", "ref-ppo"])])
+  rows = curves.load([_write(tmp_path / "refs", ["ref-uniform", "ref-ppo"])])
   (c,) = plot.comparisons(rows)
   # finals 1, 1, 1, 0.5 against 0, 0, 0, 0.5: each of the three 1s beats all four (12); the
   # 0.5 beats three 0s and ties the 0.5 (3.5): 15.5 / 16.
   assert (c["a"], c["b"]) == ("ref-uniform", "ref-ppo") and c["p"][0] == pytest.approx(15.5 / 16)
   assert c["reading"] == "Ref:Uniform above Ref:PPO"
   assert "| PointMaze | Ref:Uniform | Ref:PPO | 0.97 [" in plot.pairs_table([c])
-  assert plot.comparisons(plot.load([_write(tmp_path / "one", ["ref-ppo"])])) == []
+  assert plot.comparisons(curves.load([_write(tmp_path / "one", ["ref-ppo"])])) == []
 
 
 def test_table_summary_file_and_figures(runs, tmp_path, capsys):
@@ -130,7 +131,7 @@ def test_table_summary_file_and_figures(runs, tmp_path, capsys):
 
 
 def test_iqm_curve_of_a_method(runs):
-  steps, point, lower, upper, n = plot.iqm_curves(plot.load(runs), "PointMaze", ["ours"])["ours"]
+  steps, point, lower, upper, n = plot.iqm_curves(curves.load(runs), "PointMaze", ["ours"])["ours"]
   # ours at step 200 (the first evaluation): 0, 0, 0.2, 0, 0.1 -> mean(0, 0, 0.1) = 0.033;
   # at 300: 0.2, 1, 0.6, 1, 0.3 -> mean(0.3, 0.6, 1) = 0.633; at 400: 0.967 (above).
   assert list(steps) == [200, 300, 400] and n == 5
@@ -142,15 +143,15 @@ def test_a_results_tree_of_run_folders_loads_every_run(tmp_path):
   # results/<task>/<method>/metrics.csv, as the study lays its runs out
   _write(tmp_path / "pointmaze" / "ours", ["ours"])
   _write(tmp_path / "pointmaze" / "hiro", ["hiro"])
-  rows = plot.load([str(tmp_path / "pointmaze")])
+  rows = curves.load([str(tmp_path / "pointmaze")])
   assert {r["method"] for r in rows} == {"ours", "hiro"}
   assert len(rows) == len(STEPS) * (len(S_E["ours"]) + len(S_E["hiro"]))
   with pytest.raises(ValueError, match="not found"):
-    plot.load([str(tmp_path / "empty")])
+    curves.load([str(tmp_path / "empty")])
 
 
 def test_per_seed_table_gives_final_s_e_and_first_success(runs):
-  table = plot.seeds_table(plot.load(runs)).splitlines()
+  table = plot.seeds_table(curves.load(runs)).splitlines()
   # ours ends at 1, 1, 1, 0.8, 0.9 and first reaches 0.5 at 400, 300, 300, 300, 400
   assert "| PointMaze | Ours | 1, 1, 1, 0.8, 0.9 | 5 of 5 | 0 | 400, 300, 300, 300, 400 |" in table
   assert "| PointMaze | HIRO | 0, 0, 0, 0, 1 | 1 of 5 | 0 | -, -, -, -, 300 |" in table
@@ -159,7 +160,7 @@ def test_per_seed_table_gives_final_s_e_and_first_success(runs):
 
 
 def test_per_seed_table_counts_the_seeds_that_fell_back(tmp_path):
-  table = plot.seeds_table(plot.load([_write(tmp_path / "x", ["ours-no-loss-mod"])]))
+  table = plot.seeds_table(curves.load([_write(tmp_path / "x", ["ours-no-loss-mod"])]))
   assert "| PointMaze | Ours w/o loss mod. | 0, 0.4, 0 | 0 of 3 | 2 | 300, 200, - |" in table
 
 
@@ -182,8 +183,8 @@ def test_drawing_the_same_figure_twice_writes_the_same_bytes(tmp_path):
   import subprocess
   import sys
   draw = ("import sys, matplotlib; matplotlib.use('Agg'); import matplotlib.pyplot as plt; "
-          "from experiments import plot; fig, ax = plt.subplots(figsize=(2, 2)); "
-          "ax.plot([0, 1], [0, 1]); plot._finish(fig, sys.argv[1], 'fig')")
+          "from experiments import drawing; fig, ax = plt.subplots(figsize=(2, 2)); "
+          "ax.plot([0, 1], [0, 1]); drawing.finish(fig, sys.argv[1], 'fig')")
   root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
   for name in ("a", "b"):
     (tmp_path / name).mkdir()
@@ -214,10 +215,10 @@ def test_folders_of_a_job_array_merge_their_seeds(tmp_path):
       w = csv.DictWriter(f, fieldnames=rows_lib.COLUMNS)
       w.writeheader()
       w.writerows(rows)
-  rows = plot.load([str(tmp_path / "run0"), str(tmp_path / "run1")])
-  steps, values = plot.per_seed(rows, "PointMaze", "ours", "eval_success")
+  rows = curves.load([str(tmp_path / "run0"), str(tmp_path / "run1")])
+  steps, values = curves.per_seed(rows, "PointMaze", "ours", "eval_success")
   assert values.shape == (6, 2) and list(values[:, -1]) == [0, 0, 0, 1, 1, 1]
-  assert plot.seed_ids(rows, "PointMaze", "ours") == ["0", "1", "2", "1/0", "1/1", "1/2"]
+  assert curves.seed_ids(rows, "PointMaze", "ours") == ["0", "1", "2", "1/0", "1/1", "1/2"]
   (r,) = plot.summary(rows, reps=100)
   assert r["seeds"] == 6
 
@@ -226,14 +227,14 @@ def test_seeds_come_in_numeric_order(tmp_path, monkeypatch):
   """Seed 10 comes after seed 9, not after seed 1: the per-seed table and figure list seeds
   in the order they were run."""
   monkeypatch.setitem(S_E, "twelve", [(0.0, 0.0, k / 20) for k in range(12)])
-  rows = plot.load([_write(tmp_path / "x", ["twelve"])])
-  assert plot.seed_ids(rows, "PointMaze", "twelve") == [str(k) for k in range(12)]
-  steps, values = plot.per_seed(rows, "PointMaze", "twelve", "eval_success")
+  rows = curves.load([_write(tmp_path / "x", ["twelve"])])
+  assert curves.seed_ids(rows, "PointMaze", "twelve") == [str(k) for k in range(12)]
+  steps, values = curves.per_seed(rows, "PointMaze", "twelve", "eval_success")
   assert list(values[:, -1]) == [k / 20 for k in range(12)]
   # a seed with a value only at a step the others have not reached stays out of both
   rows.append({**rows[-1], "seed": "12", "env_step": "500"})
-  assert plot.seed_ids(rows, "PointMaze", "twelve") == [str(k) for k in range(12)]
-  assert plot.per_seed(rows, "PointMaze", "twelve", "eval_success")[1].shape == (12, 3)
+  assert curves.seed_ids(rows, "PointMaze", "twelve") == [str(k) for k in range(12)]
+  assert curves.per_seed(rows, "PointMaze", "twelve", "eval_success")[1].shape == (12, 3)
 
 
 def test_env_step_axes_read_in_thousands_and_millions(tmp_path):
@@ -245,8 +246,8 @@ def test_env_step_axes_read_in_thousands_and_millions(tmp_path):
   fig, (steps_ax, other_ax) = plt.subplots(1, 2)
   for ax in (steps_ax, other_ax):
     ax.plot([0, 1_000_000], [0, 1])
-  steps_ax.set_xlabel(plot.STEPS_LABEL)
-  plot._finish(fig, str(tmp_path), "fig")
+  steps_ax.set_xlabel(drawing.STEPS_LABEL)
+  drawing.finish(fig, str(tmp_path), "fig")
   fig.canvas.draw()
   assert {"200k", "1M"} <= {t.get_text() for t in steps_ax.get_xticklabels()}
   assert "1M" not in [t.get_text() for t in other_ax.get_xticklabels()]
@@ -261,15 +262,15 @@ def test_seeds_figure_wraps_its_panels_and_names_few_seeds(tmp_path, monkeypatch
   import matplotlib.pyplot as plt
   monkeypatch.setitem(S_E, "many", [(0.0, 0.0, k / 20) for k in range(plot.SEEDS_LEGEND + 1)])
   methods = ["ours", "hiro", "ref-uniform", "ref-ppo", "ours-no-mods", "many"]
-  rows = plot.load([_write(tmp_path / "x", methods)])
+  rows = curves.load([_write(tmp_path / "x", methods)])
   figures = []
-  monkeypatch.setattr(plot, "_finish", lambda fig, out, name, *_: figures.append(fig) or [])
+  monkeypatch.setattr(plot, "finish", lambda fig, out, name, *_: figures.append(fig) or [])
   plot._seeds_figure(plt, rows, "PointMaze", methods, str(tmp_path))
   (fig,) = figures  # closed by now; its axes stay readable
   fig.canvas.draw()
   shown = [ax for ax in fig.axes if ax.get_visible()]
   assert len(fig.axes) == 8 and [ax.get_title() for ax in shown] == [
-      f"{plot.label(m)} ({len(S_E[m])} seeds)" for m in methods]
+      f"{drawing.label(m)} ({len(S_E[m])} seeds)" for m in methods]
   assert {round(ax.get_position().y0, 2) for ax in shown[:4]} != {
       round(ax.get_position().y0, 2) for ax in shown[4:]}  # a second row
   assert [ax.get_legend() is not None for ax in shown] == [True] * 5 + [False]
@@ -281,7 +282,7 @@ def test_the_papers_axis_counts_from_the_end_of_warm_up(tmp_path):
   step 110K, is the paper's 10K, its last at 1M the paper's 900K."""
   here = os.path.dirname(os.path.abspath(__file__))
   study = os.path.join(here, "..", "results", "antpush")
-  env_rows, paper_rows = plot.load([study]), plot.load([study], axis="paper")
+  env_rows, paper_rows = curves.load([study]), curves.load([study], axis="paper")
   evaluated = lambda rows: sorted({int(r["env_step"]) for r in rows if r["eval_success"]})
   assert evaluated(env_rows)[0] == 110_000 and evaluated(paper_rows)[0] == 10_000
   assert max(evaluated(paper_rows)) == max(evaluated(env_rows)) - 100_000 == 900_000
@@ -290,7 +291,7 @@ def test_the_papers_axis_counts_from_the_end_of_warm_up(tmp_path):
   run.mkdir()
   (run / "metrics.csv").write_text(open(os.path.join(study, "ours", "metrics.csv")).read())
   with pytest.raises(ValueError, match="the paper's axis needs each run's warm-up"):
-    plot.load([str(run)], axis="paper")
+    curves.load([str(run)], axis="paper")
   out = plot.plot([os.path.join(study, "ours")], str(tmp_path / "fig"), axis="paper")
   assert any(p.endswith("antpush_iqm.png") for p in out)
 
@@ -298,12 +299,12 @@ def test_the_papers_axis_counts_from_the_end_of_warm_up(tmp_path):
 # --- what a reader of the figures is told (issue 51) ------------------------------------------
 
 def _figure_of(monkeypatch, draw, *args):
-  """The figure ``draw(plt, *args, out)`` makes (``_finish`` intercepted, nothing written)."""
+  """The figure ``draw(plt, *args, out)`` makes (``finish`` intercepted, nothing written)."""
   import matplotlib
   matplotlib.use("Agg")
   import matplotlib.pyplot as plt
   figures = []
-  monkeypatch.setattr(plot, "_finish", lambda fig, out, name, *_: figures.append(fig) or [])
+  monkeypatch.setattr(plot, "finish", lambda fig, out, name, *_: figures.append(fig) or [])
   draw(plt, *args, "unused")
   (fig,) = figures
   fig.canvas.draw()
@@ -313,7 +314,7 @@ def _figure_of(monkeypatch, draw, *args):
 def test_success_bands_are_intervals_clipped_to_one_and_the_legend_covers_nothing(
     tmp_path, monkeypatch):
   monkeypatch.setitem(S_E, "one", [(0.0, 1.0, 1.0)])
-  rows = plot.load([_write(tmp_path / "x", ["ours", "hiro", "one"])])
+  rows = curves.load([_write(tmp_path / "x", ["ours", "hiro", "one"])])
   fig = _figure_of(monkeypatch, plot._success_figure, rows, "PointMaze", ["ours", "hiro", "one"])
   ax = fig.axes[0]
   assert "95% CI" in ax.get_title() and ax.get_ylabel() == "success rate (evaluation)"
@@ -328,7 +329,7 @@ def test_success_bands_are_intervals_clipped_to_one_and_the_legend_covers_nothin
 
 
 def test_a_mode_never_chosen_is_named_and_drawn_in_its_own_style(tmp_path, monkeypatch):
-  rows = plot.load([_write(tmp_path / "x", ["ours", "hiro"])])
+  rows = curves.load([_write(tmp_path / "x", ["ours", "hiro"])])
   for r in rows:  # HIRO runs TD3 only: its PPO and RANDOM lines lie on 0, one over the other
     if r["method"] == "hiro":
       r["cum_steps_PPO"] = r["cum_steps_RANDOM"] = "0"
@@ -345,13 +346,13 @@ def test_too_few_seeds_for_an_interval_is_said(tmp_path, monkeypatch):
   the summary names it."""
   monkeypatch.setitem(S_E, "ours", [(0.0, 0.0, 1.0), (0.0, 1.0, 1.0), (0.0, 0.0, 0.0),
                                     (0.0, 0.0, 0.0)])
-  rows = plot.load([_write(tmp_path / "x", ["ours"])])
+  rows = curves.load([_write(tmp_path / "x", ["ours"])])
   (r,) = plot.summary(rows)
   assert plot.uninformative(r["final_s_e"])
   note = plot.too_few_note([r])
   assert note.startswith("Too few seeds for an interval") and "Ours (4 seeds" in note
   assert "Too few seeds for an interval" in plot.tables(rows)
-  assert plot.seeds_text(1) == "1 seed" and plot.seeds_text(4) == "4 seeds"
+  assert drawing.seeds_text(1) == "1 seed" and drawing.seeds_text(4) == "4 seeds"
 
 
 def test_the_gif_has_a_key_for_its_marks(tmp_path):
