@@ -29,8 +29,13 @@ can then flip with ``seed`` (the Ant Push study's claim 4a, ``results/antpush/RE
 ``reps="exact"`` computes the interval from every resample instead of a draw: each array's
 n^n equally likely resamples of its n runs per task (and the product of these over tasks and
 over several arrays), enumerated as the multisets they form, each weighted by the number of
-ordered resamples it stands for, and the same percentiles (``np.percentile``'s linear
-interpolation over all n^n values, computed from the weights). That needs a statistic that
+ordered resamples it stands for, and the percentiles of that bootstrap distribution itself
+(``weighted_percentile``: its inverse distribution function, where the drawn percentiles go
+as the draws grow). Not the linear interpolation between the n^n values that ``np.percentile``
+would make of them as a sample: with 3 runs, the all-lowest resample has probability 1/27 (above
+2.5 %), so the lower end is the lowest run's value, as in every large draw; interpolating
+between the 27 values would put it a fifth of the way to the next (until 2026-12-06 it did;
+tests/test_stats.py). That needs a statistic that
 does not depend on the order of the runs (``iqm`` and ``probability_of_improvement`` do not)
 and at most ``EXACT_LIMIT`` multisets in all: 6 runs have 462 (of 46,656 resamples), 10 runs
 92,378; P(X > Y) of 6 runs against 6 is 462^2 = 213,444.
@@ -126,21 +131,27 @@ def _exact_replicates(statistic, scores: list[np.ndarray]):
 
 
 def weighted_percentile(values, weights, q):
-  """``np.percentile(np.repeat(values, weights, axis=-1), q, axis=-1)`` (linear), without
-  building the repeated array: ``weights`` are integer counts of each value (last axis)."""
+  """The ``q``-th percentiles of the distribution that gives each value (last axis) its
+  integer weight: ``np.percentile(np.repeat(values, weights, axis=-1), q, axis=-1,
+  method="averaged_inverted_cdf")`` without building the repeated array. The inverse of the
+  distribution function (the mean of two values where it sits exactly on ``q``): the limit of
+  the percentile of ever more draws from the distribution, as ``interval``'s drawn replicates
+  estimate it."""
   values, weights = np.asarray(values, dtype=float), np.asarray(weights, dtype=np.int64)
   order = np.argsort(values, axis=-1, kind="stable")
   v = np.take_along_axis(values, order, axis=-1)
   cum = np.cumsum(weights[order], axis=-1)
   n = cum[..., -1:]
+  last = v.shape[-1] - 1
   out = []
   for p in np.atleast_1d(q):
-    pos = p / 100 * (n - 1)
-    lo = np.floor(pos)
-    i = np.minimum((cum <= lo).sum(-1, keepdims=True), v.shape[-1] - 1)
-    j = np.minimum((cum <= lo + 1).sum(-1, keepdims=True), v.shape[-1] - 1)
-    a, b = np.take_along_axis(v, i, -1), np.take_along_axis(v, j, -1)
-    out.append((a + (pos - lo) * (b - a))[..., 0])
+    k = p / 100 * n
+    on_step = np.isclose(k, np.round(k), rtol=1e-12, atol=1e-9)
+    j = np.where(on_step, np.round(k), np.floor(k))  # the order statistic j (0-based) ...
+    upper = np.minimum((cum <= j).sum(-1, keepdims=True), last)
+    lower = np.minimum((cum <= j - 1).sum(-1, keepdims=True), last)  # ... and j - 1
+    a, b = np.take_along_axis(v, lower, -1), np.take_along_axis(v, upper, -1)
+    out.append(np.where(on_step, (a + b) / 2, b)[..., 0])
   return np.stack(out) if np.ndim(q) else out[0]
 
 

@@ -139,12 +139,16 @@ def test_multisets_stand_for_every_ordered_resample():
   assert idx.tolist() == [[0, 0], [0, 1], [1, 1]] and weight.tolist() == [1, 2, 1]
 
 
+INVERSE = "averaged_inverted_cdf"  # the bootstrap distribution's own percentiles
+
+
 def test_weighted_percentile_is_the_percentile_of_the_repeated_values():
   rng = np.random.default_rng(4)
-  values, weights = rng.normal(size=(3, 7)), rng.integers(1, 5, 7)
-  for q in (0, 2.5, 50, 97.5, 100):
-    np.testing.assert_allclose(stats.weighted_percentile(values, weights, q),
-                               np.percentile(np.repeat(values, weights, axis=-1), q, axis=-1))
+  for size in (1, 2, 7):
+    values, weights = rng.normal(size=(3, size)).round(1), rng.integers(1, 5, size)  # ties too
+    for q in (0, 2.5, 12.5, 50, 97.5, 100):
+      np.testing.assert_allclose(stats.weighted_percentile(values, weights, q), np.percentile(
+          np.repeat(values, weights, axis=-1), q, axis=-1, method=INVERSE))
 
 
 def test_exact_interval_is_the_percentiles_of_every_resample():
@@ -153,24 +157,36 @@ def test_exact_interval_is_the_percentiles_of_every_resample():
   x = rng.normal(size=5)
   every = stats.iqm(x[_every(5)].T[:, None, :])
   assert stats.interval(stats.iqm, x, reps="exact") == pytest.approx(
-      (stats.iqm(x), *np.percentile(every, [2.5, 97.5])))
+      (stats.iqm(x), *np.percentile(every, [2.5, 97.5], method=INVERSE)))
   # P(X > Y) of 3 runs against 4, resampled independently: 27 x 256 pairs of resamples.
   x, y = rng.integers(0, 3, 3).astype(float), rng.integers(0, 3, 4).astype(float)
   xs, ys = x[_every(3)], y[_every(4)]
   p = ((xs[:, None, :, None] > ys[None, :, None, :])
        + 0.5 * (xs[:, None, :, None] == ys[None, :, None, :])).mean((2, 3))
   assert stats.interval(stats.probability_of_improvement, x, y, reps="exact")[1:] == (
-      pytest.approx(tuple(np.percentile(p, [2.5, 97.5]))))
+      pytest.approx(tuple(np.percentile(p, [2.5, 97.5], method=INVERSE))))
   # two tasks of 3 runs, stratified: each task's 27 resamples with each of the other's.
   s = rng.normal(size=(3, 2))
   every = [stats.iqm(np.stack([s[a, 0], s[b, 1]], 1)) for a in _every(3) for b in _every(3)]
   assert stats.interval(stats.iqm, s, reps="exact")[1:] == (
-      pytest.approx(tuple(np.percentile(every, [2.5, 97.5]))))
+      pytest.approx(tuple(np.percentile(every, [2.5, 97.5], method=INVERSE))))
   # a curve: pointwise, each step's 4^4 resamples.
   curve = rng.normal(size=(4, 3))
   every = stats.iqm(np.moveaxis(curve[_every(4)], 0, -1)[:, None])
   np.testing.assert_allclose(np.array(stats.iqm_curve(curve, reps="exact")[1:]),
-                             np.percentile(every, [2.5, 97.5], axis=-1))
+                             np.percentile(every, [2.5, 97.5], axis=-1, method=INVERSE))
+
+
+def test_exact_is_where_ever_more_draws_go():
+  """3 seeds: the all-lowest resample has probability 1/27, above 2.5 %, so the lower end is
+  the lowest seed in every large draw and in the exact interval (a linear interpolation
+  between the 27 resamples put it at 0.612 for these, above the lowest seed: a reading against
+  0.6 then held that no draw holds)."""
+  seeds = [0.56, 0.8, 0.8]
+  exact = stats.interval(stats.mean, seeds, reps="exact")
+  assert exact[1] == pytest.approx(0.56) and exact[2] == pytest.approx(0.8)
+  for reps in (2000, 50_000):
+    assert stats.interval(stats.mean, seeds, reps=reps)[1:] == pytest.approx(exact[1:])
 
 
 def test_a_reading_on_the_monte_carlo_edge():
