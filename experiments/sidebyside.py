@@ -58,6 +58,8 @@ REFERENCE = "reference"  # the method name of the paper's code's rows
 AT = 1_000_000  # the paper's 1M (x): R1, R2, R6
 LATE = (900_000, 1_000_000)  # R3, R4: every evaluation with LATE[0] <= x <= LATE[1]
 MARGIN = 0.2  # R3: "like the reference" if the difference's interval lies within +-MARGIN
+SEEDS = {REFERENCE: 3, "ours": 6}  # the protocol's seeds: a reading needs every one of them
+TOLERANCE = 1e-9  # an interval's end read against a level or the margin: a rounding is not a side
 PASS = 0.6  # the paper's headline: S_E above 0.6 at its 1M
 LOW_AT = (200_000, 500_000, 1_000_000)  # R5, each over the LOW_SPAN env steps up to it
 LOW_SPAN = 50_000
@@ -68,12 +70,30 @@ REFERENCE_COUNTS = {"TD3": "off_policy_count", "PPO": "on_policy_count",
                     "RANDOM": "random_policy_count"}
 
 
-def _csv(path: str) -> list[dict]:
+def _csv(path: str, numbers=()) -> list[dict]:
+  """The rows of a harness CSV; a half-written last line (a run killed mid-row) is left out,
+  as the harness's resume cuts it; any other row short of cells, or whose ``numbers`` columns
+  are not finite numbers, is a ValueError naming its line."""
   try:
     with open(path, newline="") as f:
-      return list(csv.DictReader(f))
+      rows = list(csv.DictReader(f))
   except OSError as e:
     raise ValueError(f"{path}: cannot be read ({e.strerror or e})") from None
+  if rows and not _row_ok(rows[-1], numbers):
+    rows = rows[:-1]
+  for i, r in enumerate(rows):
+    if not _row_ok(r, numbers):
+      raise ValueError(f"{path}: line {i + 2} is malformed or not finite: {r}")
+  return rows
+
+
+def _row_ok(row: dict, numbers) -> bool:
+  if None in row or None in row.values():  # too many cells, or too few
+    return False
+  try:
+    return all(np.isfinite(float(row[c])) for c in numbers)
+  except (KeyError, ValueError):
+    return False
 
 
 def reference_folders(d: str) -> list[str]:
@@ -95,11 +115,13 @@ def reference_rows(folder: str) -> list[dict]:
     raise ValueError(f"{folder}/config.json: the run's seed cannot be read ({e})") from None
   base = {"task": TASK, "method": REFERENCE, "seed": seed}
   rows = []
-  for r in _csv(os.path.join(folder, "evaluations.csv")):
+  for r in _csv(os.path.join(folder, "evaluations.csv"),
+                ("step", "success_rate", "final_distance")):
     rows.append({**base, "env_step": r["step"], "eval_success": r["success_rate"],
                  "eval_success_ppo": r.get("higher_success_rate", ""),
                  "eval_distance": r["final_distance"]})
-  for r in _csv(os.path.join(folder, "windows.csv")):
+  for r in _csv(os.path.join(folder, "windows.csv"),
+                ("step", *REFERENCE_COUNTS.values())):
     if int(r["step"]) > 0:
       rows.append({**base, "env_step": r["step"], "eval_success": "",
                    "low_reward": r["low_intrinsic_reward_mean"],
@@ -111,10 +133,16 @@ def reference_rows(folder: str) -> list[dict]:
 def load(dirs) -> list[dict]:
   """The reference's rows and our run folders' rows (paper's axis) under ``dirs``; raises
   ValueError naming a file that is not what it should be."""
-  rows = []
+  rows, seen = [], {}
   for d in dirs:
     for folder in reference_folders(d):
-      rows += reference_rows(folder)
+      folder_rows = reference_rows(folder)
+      seed = folder_rows[0]["seed"] if folder_rows else None
+      if seed in seen:
+        raise ValueError(f"{seen[seed]} and {folder} are both the reference's seed {seed}: "
+                         f"keep one (a copy elsewhere than under the study's folder)")
+      seen[seed] = folder
+      rows += folder_rows
     ours = [root for root, _, files in os.walk(d) if "metrics.csv" in files]
     if ours:
       rows += curves.load(ours, axis="paper")
@@ -123,15 +151,30 @@ def load(dirs) -> list[dict]:
   return rows
 
 
-def by_seed(rows, method, column, lo, hi) -> tuple[list[str], np.ndarray]:
-  """(seeds, each seed's mean of ``column`` over its rows with lo <= x <= hi); a seed with no
-  such row is left out."""
-  values = defaultdict(list)
+def seeds_of(rows, method) -> list[str]:
+  """Every seed of ``method`` with any row, in numeric order."""
+  return sorted({r["seed"] for r in rows if r["method"] == method}, key=curves.seed_order)
+
+
+def by_seed(rows, method, column, lo, hi) -> tuple[list[str], np.ndarray, str | None]:
+  """(seeds, each seed's mean of ``column`` over its values with lo <= x <= hi, why not). A
+  reading is made only on the protocol's seeds (``SEEDS``), each with a value at every x of the
+  window where any seed of the method has one, ``hi`` among them; else ``why not`` says what
+  is missing (the values are still given, for the figure's sake, never read)."""
+  values = defaultdict(dict)  # seed -> {x: value}
   for r in rows:
-    if r["method"] == method and r.get(column, "") != "" and lo <= int(r["env_step"]) <= hi:
-      values[r["seed"]].append(float(r[column]))
-  seeds = sorted(values, key=curves.seed_order)
-  return seeds, np.array([np.mean(values[s]) for s in seeds])
+    x = int(r["env_step"])
+    if r["method"] == method and r.get(column, "") != "" and lo <= x <= hi:
+      if values[r["seed"]].setdefault(x, float(r[column])) != float(r[column]):
+        raise ValueError(f"{method} seed {r['seed']} has two values of {column} at x = {x}")
+  seeds = seeds_of(rows, method)
+  xs = set().union(*values.values()) if values else set()
+  short = [s for s in seeds if set(values.get(s, {})) != xs]
+  why = (f"{len(seeds)} of the protocol's {SEEDS[method]} seeds" if len(seeds) != SEEDS[method]
+         else f"x = {hi} not reached" if hi not in xs
+         else f"seed {', '.join(short)} without every value of {lo}-{hi}" if short else None)
+  have = [s for s in seeds if values.get(s)]
+  return have, np.array([np.mean(list(values[s].values())) for s in have]), why
 
 
 def mean(x):
@@ -144,77 +187,79 @@ def difference(x, y):
 
 def versus_level(iv, level: float) -> str:
   _, lo, hi = iv
-  return "holds" if lo >= level else "does not hold" if hi < level else "cannot be told apart"
+  return ("holds" if lo >= level - TOLERANCE else "does not hold" if hi < level - TOLERANCE
+          else "cannot be told apart")
 
 
 def equivalence(iv, margin: float = MARGIN) -> str:
   """R3's reading of the difference ours - reference: within the margin, below or above (the
-  interval off 0), both, or neither shown."""
+  interval off 0), both, or neither shown. An end within ``TOLERANCE`` of a bound is on it."""
   _, lo, hi = iv
-  within = -margin <= lo and hi <= margin
-  side = "ours below" if hi < 0 else "ours above" if lo > 0 else None
+  within = -margin - TOLERANCE <= lo and hi <= margin + TOLERANCE
+  side = "ours below" if hi < -TOLERANCE else "ours above" if lo > TOLERANCE else None
   if within and side:
     return f"{side}, by less than {margin}"
   if within:
     return f"like the reference (within +-{margin})"
   if side:
-    return f"{side}" + (f" by more than {margin}" if (hi < -margin or lo > margin) else "")
+    beyond = hi < -margin - TOLERANCE or lo > margin + TOLERANCE
+    return f"{side}" + (f" by more than {margin}" if beyond else "")
   return "cannot be told apart"
 
 
 def _reached(rows, method, x) -> bool:
-  return any(r["method"] == method and int(r["env_step"]) >= x and r["eval_success"] != ""
-             for r in rows)
+  return any(r["method"] == method and int(r["env_step"]) >= x for r in rows)
 
 
 def _level_reading(rows, method, estimator, reps):
-  seeds, s_e = by_seed(rows, method, "eval_success", AT, AT)
-  if not _reached(rows, method, AT) or not len(s_e):
-    return {"reading": f"n/a (x = {AT} not reached)", "seeds": seeds}
+  seeds, s_e, why = by_seed(rows, method, "eval_success", AT, AT)
+  if why:
+    return {"reading": f"n/a ({why})", "seeds": seeds}
   iv = stats.interval(estimator, s_e, reps=reps)
   return {"reading": versus_level(iv, PASS), "estimate": iv, "seeds": seeds,
           "values": s_e.tolist()}
 
 
 def _difference(rows, column, lo, hi, reps):
-  s_ours, ours = by_seed(rows, "ours", column, lo, hi)
-  s_ref, ref = by_seed(rows, REFERENCE, column, lo, hi)
-  if not len(ours) or not len(ref):
-    return None
+  """ours - reference of the per-seed means of ``column`` over lo <= x <= hi, with the two
+  sides' means; ``{"why": ...}`` where either side is not complete (``by_seed``)."""
+  _, ours, why_ours = by_seed(rows, "ours", column, lo, hi)
+  _, ref, why_ref = by_seed(rows, REFERENCE, column, lo, hi)
+  if why_ours or why_ref:
+    return {"why": "; ".join(f"{m}: {w}" for m, w in (("ours", why_ours),
+                                                       ("the code", why_ref)) if w)}
   return {"difference": stats.interval(difference, ours, ref, reps=reps),
           "ours": stats.interval(mean, ours, reps=reps),
           "reference": stats.interval(mean, ref, reps=reps), "seeds": (len(ours), len(ref))}
 
 
 def _modes(rows, method):
-  """Each seed's Middle decisions per mode since warm-up at its last row with x <= AT."""
-  last = {}
-  for r in rows:
-    if (r["method"] == method and r.get("cum_decisions_TD3", "") != ""
-            and int(r["env_step"]) <= AT):
-      if r["seed"] not in last or int(r["env_step"]) > int(last[r["seed"]]["env_step"]):
-        last[r["seed"]] = r
-  if not last:
-    return None
-  return {m: np.array([float(r[f"cum_decisions_{m}"]) for r in last.values()]) for m in MODES}
+  """Each seed's Middle decisions per mode since warm-up at x = AT (its row there: our chunk's
+  or the harness's window), or ``{"why": ...}`` where a seed has none."""
+  at = {r["seed"]: r for r in rows if r["method"] == method
+        and r.get("cum_decisions_TD3", "") != "" and int(r["env_step"]) == AT}
+  seeds = seeds_of(rows, method)
+  if len(seeds) != SEEDS[method] or set(at) != set(seeds):
+    return {"why": f"{len(at)} of the protocol's {SEEDS[method]} seeds at x = {AT}"}
+  return {m: np.array([float(at[s][f"cum_decisions_{m}"]) for s in seeds]) for m in MODES}
 
 
 def readings(rows, reps=stats.REPS) -> dict:
-  """R1-R6 from the rows of the reference and ours (``load``)."""
+  """R1-R6 from the rows of the reference and ours (``load``); a reading whose seeds are not
+  all there (``by_seed``) is n/a with the reason."""
   if not any(r["method"] == REFERENCE for r in rows) or not any(r["method"] == "ours"
                                                                  for r in rows):
     raise ValueError(f"{TASK} rows of both the reference and ours are needed")
-  late_done = _reached(rows, "ours", LATE[1]) and _reached(rows, REFERENCE, LATE[1])
   out = {"reps": reps, "r1": _level_reading(rows, REFERENCE, mean, reps),
-         "r2": _level_reading(rows, "ours", stats.iqm, reps), "late_done": late_done,
-         "r3": _difference(rows, "eval_success", *LATE, reps) if late_done else None,
-         "r4": _difference(rows, "eval_distance", *LATE, reps) if late_done else None,
+         "r2": _level_reading(rows, "ours", stats.iqm, reps),
+         "r3": _difference(rows, "eval_success", *LATE, reps),
+         "r4": _difference(rows, "eval_distance", *LATE, reps),
          "r5": {(column, x): _difference(rows, column, x - LOW_SPAN + 1, x, reps)
                 for column in LOW_COLUMNS for x in LOW_AT
                 if _reached(rows, "ours", x) and _reached(rows, REFERENCE, x)},
          "r6": {m: _modes(rows, m) for m in ("ours", REFERENCE)}}
-  if out["r3"] is not None:
-    out["r3"]["reading"] = equivalence(out["r3"]["difference"])
+  r3 = out["r3"]
+  r3["reading"] = equivalence(r3["difference"]) if "difference" in r3 else f"n/a ({r3['why']})"
   return out
 
 
@@ -223,8 +268,8 @@ def _iv(iv, digits=2) -> str:
 
 
 def _diff_cell(d, digits=2) -> str:
-  if d is None:
-    return "n/a (not reached by both)"
+  if "why" in d:
+    return f"n/a ({d['why']})"
   return (f"ours {_iv(d['ours'], digits)} - reference {_iv(d['reference'], digits)} = "
           f"{_iv(d['difference'], digits)} ({d['seeds'][0]} and {d['seeds'][1]} seeds)")
 
@@ -232,7 +277,8 @@ def _diff_cell(d, digits=2) -> str:
 def _level_cell(r) -> str:
   if "estimate" not in r:
     return ""
-  return (f"{_iv(r['estimate'])}; per seed " + ", ".join(f"{v:.2f}" for v in r["values"]))
+  return (f"{_iv(r['estimate'])} ({len(r['values'])} seeds); per seed "
+          + ", ".join(f"{v:.2f}" for v in r["values"]))
 
 
 def markdown(r: dict) -> str:
@@ -247,18 +293,18 @@ def markdown(r: dict) -> str:
            f"{_level_cell(r['r2'])} |"]
   r3 = r["r3"]
   lines.append(f"| R3. ours' late S_E (0.9M-1M) like the reference's (margin {MARGIN}) | "
-               f"{r3['reading'] if r3 else 'n/a (not reached by both)'} | {_diff_cell(r3)} |")
+               f"{r3['reading']} | {_diff_cell(r3)} |")
   lines.append(f"| R4. final distance to the target, late (described) | | "
                f"{_diff_cell(r['r4'])} |")
   for (column, x), d in r["r5"].items():
     lines.append(f"| R5. the Low's {LOW_COLUMNS[column]}, {LOW_SPAN // 1000}K up to x = "
                  f"{x // 1000}K (described) | | {_diff_cell(d)} |")
   for m, counts in r["r6"].items():
-    if counts is not None:
-      cells = ", ".join(f"{mode} {np.mean(counts[mode]):.0f} ("
-                        + ", ".join(f"{v:.0f}" for v in counts[mode]) + ")" for mode in MODES)
-      lines.append(f"| R6. {m}: Middle decisions per mode since warm-up, up to x = 1M, mean "
-                   f"(per seed) (described) | | {cells} |")
+    cells = (f"n/a ({counts['why']})" if "why" in counts else
+             ", ".join(f"{mode} {np.mean(counts[mode]):.0f} ("
+                       + ", ".join(f"{v:.0f}" for v in counts[mode]) + ")" for mode in MODES))
+    lines.append(f"| R6. {m}: Middle decisions per mode since warm-up, up to x = 1M, mean "
+                 f"(per seed) (described) | | {cells} |")
   return "\n".join(lines) + "\n"
 
 

@@ -57,8 +57,20 @@ def test_half_the_seeds_learning_cannot_be_told_apart():
   r = claims.readings(_rows("ours", half) + _rows("hiro", lambda seed, t: 0.0))
   assert r["final"]["ours"]["reading"] == "cannot be told apart"
   assert r["onset"]["reading"] == "does not hold"  # nothing by 600K
-  with pytest.raises(ValueError, match="both ours and hiro"):
-    claims.readings(_rows("ours", half))
+  with pytest.raises(ValueError, match="rows of ours"):
+    claims.readings(_rows("hiro", half))
+
+
+def test_ours_alone_reads_claims_1_2_and_4_and_leaves_3_to_hiro():
+  """The side-by-side study's ours before its HIRO runs (its protocol: claims 1, 2 and 4)."""
+  alone = claims.readings(_rows("ours", lambda seed, t: float(t >= 400_000)))
+  assert alone["final"]["ours"]["reading"] == "holds" and "hiro" not in alone["final"]
+  assert alone["onset"]["reading"] == "holds"
+  assert alone["early_late"]["early"] == alone["early_late"]["behind"] == (
+      "n/a (no rows of HIRO)")
+  text = claims.markdown(alone)
+  assert "ours at 1000000 env steps (8 seeds; no rows of HIRO)" in text
+  assert "| 3b. then behind ours (1000000) | n/a (no rows of HIRO) |" in text
 
 
 def test_a_run_still_going_is_read_only_where_the_protocol_reads_it():

@@ -104,9 +104,53 @@ def test_one_reference_seed_of_three_learning_cannot_be_told_apart(tmp_path):
 
 def test_runs_still_going_are_read_only_where_both_got(tmp_path):
   r = _study(tmp_path, [0.8, 0.8, 0.8], [0.8] * 6, until=600_000)
-  assert r["r1"]["reading"].startswith("n/a") and r["r3"] is None
+  assert r["r1"]["reading"] == "n/a (x = 1000000 not reached)"
+  assert r["r3"]["reading"] == ("n/a (ours: x = 1000000 not reached; the code: x = 1000000 "
+                                "not reached)")
   assert sorted({x for _, x in r["r5"]}) == [200_000, 500_000]
-  assert "n/a (not reached by both)" in sidebyside.markdown(r)
+  assert r["r6"]["ours"] == {"why": "0 of the protocol's 6 seeds at x = 1000000"}
+  assert "| R4. final distance to the target, late (described) | | n/a (ours: x" in (
+      sidebyside.markdown(r))
+
+
+def test_a_seed_short_of_the_protocols_evaluations_is_not_read(tmp_path):
+  """Every reading is made on the protocol's seeds, each with every evaluation it uses: a
+  reference seed that stopped at 950K, or lacks its evaluation at 1M, or a missing seed, leaves
+  R1 and R3 n/a, naming the seeds (the two others alone would read "holds")."""
+  _write_study(tmp_path, [0.8, 0.8], [0.8] * 6)
+  _reference(str(tmp_path / "reference" / "seed2"), 2, _ramp(0.1), until=950_000)
+  r = sidebyside.readings(sidebyside.load([str(tmp_path)]), reps="exact")
+  assert r["r1"]["reading"] == "n/a (seed 2 without every value of 1000000-1000000)"
+  assert r["r3"]["reading"] == ("n/a (the code: seed 2 without every value of "
+                                "900000-1000000)")
+  assert r["r2"]["reading"] == "holds"
+  assert r["r6"]["reference"] == {"why": "2 of the protocol's 3 seeds at x = 1000000"}
+  other = tmp_path / "two"
+  _write_study(other, [0.8, 0.8], [0.8] * 6)
+  r = sidebyside.readings(sidebyside.load([str(other)]), reps="exact")
+  assert r["r1"]["reading"] == "n/a (2 of the protocol's 3 seeds)"
+
+
+def test_a_copy_of_a_reference_seed_and_a_broken_line_are_refused(tmp_path):
+  _write_study(tmp_path, [0.8, 0.8, 0.8], [0.8] * 6)
+  _reference(str(tmp_path / "old" / "seed0"), 0, _ramp(0.4))
+  with pytest.raises(ValueError, match="both the reference's seed 0"):
+    sidebyside.load([str(tmp_path)])
+  evaluations = tmp_path / "reference" / "seed1" / "evaluations.csv"
+  lines = evaluations.read_text().splitlines()
+  evaluations.write_text("\n".join(lines[:-1] + ["1100000,1000000,0.8"]) + "\n")  # half-written
+  assert len(sidebyside.reference_rows(str(evaluations.parent))) == len(
+      sidebyside.reference_rows(str(tmp_path / "reference" / "seed2"))) - 1
+  evaluations.write_text("\n".join(lines[:5] + ["60000,50000,0.8,0.0,nan"] + lines[6:]) + "\n")
+  with pytest.raises(ValueError, match="line 6 is malformed or not finite"):
+    sidebyside.reference_rows(str(evaluations.parent))
+
+
+def test_a_difference_on_the_margin_is_on_it():
+  """0 against 0.2 is -0.2 to rounding: within the margin, not beyond it."""
+  assert sidebyside.equivalence((-0.2 - 4e-17, -0.2 - 4e-17, -0.2 - 4e-17)) == (
+      "ours below, by less than 0.2")
+  assert sidebyside.versus_level((0.6 - 1e-16, 0.6 - 1e-16, 0.6 - 1e-16), 0.6) == "holds"
 
 
 def test_claims_picks_the_study_by_its_folders(tmp_path, capsys):
