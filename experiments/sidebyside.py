@@ -160,7 +160,7 @@ def by_seed(rows, method, column, lo, hi) -> tuple[list[str], np.ndarray, str | 
   """(seeds, each seed's mean of ``column`` over its values with lo <= x <= hi, why not). A
   reading is made only on the protocol's seeds (``SEEDS``), each with a value at every x of the
   window where any seed of the method has one, ``hi`` among them; else ``why not`` says what
-  is missing (the values are still given, for the figure's sake, never read)."""
+  is missing (and the readings use none of the values)."""
   values = defaultdict(dict)  # seed -> {x: value}
   for r in rows:
     x = int(r["env_step"])
