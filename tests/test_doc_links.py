@@ -28,8 +28,9 @@ PATH = re.compile(r"^(?:%s)/[\w./-]*\w$" % "|".join(map(re.escape, CODE_DIRS)))
 DOTTED = re.compile(r"^([a-z_][a-z0-9_]*)\.([A-Za-z_]\w*)(?:\(.*\))?$")
 PACKAGE = re.compile(r"^(?:python -m )?((?:nonmono_jax|envs|experiments|benchmarks|reference)"
                      r"(?:\.\w+)+)")
-# Names that in the docs are a config's sections (``top.alpha``: the config tests check those)
-# or a value (``state.done``), not the module of that name.
+# Names that in the docs are a config's sections (``top.alpha``, a field's dotted path; the
+# docs also name removed fields, so those are not checked here) or a value (``state.done``),
+# not the module of that name.
 NOT_MODULES = {"low", "middle", "middle_ppo", "top", "homeostasis", "state"}
 EXTENSIONS = {"py", "json", "jsonl", "csv", "md", "xml", "txt", "toml", "ipynb", "png", "pdf",
               "gif", "npz", "pt", "sh"}  # ``config.json`` is a file
