@@ -102,18 +102,22 @@ def reference_folders(d: str) -> list[str]:
   return found
 
 
+def reference_seed(folder: str) -> str:
+  """The seed of a harness run folder, from its ``config.json``."""
+  try:
+    with open(os.path.join(folder, "config.json")) as f:
+      return str(json.load(f)["seed"])
+  except (OSError, ValueError, KeyError) as e:
+    raise ValueError(f"{folder}/config.json: the run's seed cannot be read ({e})") from None
+
+
 def reference_rows(folder: str) -> list[dict]:
   """One harness run folder as rows of the long form of ``metrics.csv`` on the paper's axis:
   an evaluation row per evaluation (``eval_success`` the code's 'success rate',
   ``eval_success_ppo`` its 'higher success rate', ``eval_distance``) and a row per window of
   the Low's reward (``low_reward``) and the mode counts since warm-up (``cum_decisions_*``).
   ``env_step`` is the code's logged step, t - start_timestep."""
-  try:
-    with open(os.path.join(folder, "config.json")) as f:
-      seed = str(json.load(f)["seed"])
-  except (OSError, ValueError, KeyError) as e:
-    raise ValueError(f"{folder}/config.json: the run's seed cannot be read ({e})") from None
-  base = {"task": TASK, "method": REFERENCE, "seed": seed}
+  base = {"task": TASK, "method": REFERENCE, "seed": reference_seed(folder)}
   rows = []
   for r in _csv(os.path.join(folder, "evaluations.csv"),
                 ("step", "success_rate", "final_distance")):
@@ -136,13 +140,12 @@ def load(dirs) -> list[dict]:
   rows, seen = [], {}
   for d in dirs:
     for folder in reference_folders(d):
-      folder_rows = reference_rows(folder)
-      seed = folder_rows[0]["seed"] if folder_rows else None
+      seed = reference_seed(folder)
       if seed in seen:
         raise ValueError(f"{seen[seed]} and {folder} are both the reference's seed {seed}: "
                          f"keep one (a copy elsewhere than under the study's folder)")
       seen[seed] = folder
-      rows += folder_rows
+      rows += reference_rows(folder)
     ours = [root for root, _, files in os.walk(d) if "metrics.csv" in files]
     if ours:
       rows += curves.load(ours, axis="paper")

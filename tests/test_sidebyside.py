@@ -129,6 +129,14 @@ def test_a_seed_short_of_the_protocols_evaluations_is_not_read(tmp_path):
   _write_study(other, [0.8, 0.8], [0.8] * 6)
   r = sidebyside.readings(sidebyside.load([str(other)]), reps="exact")
   assert r["r1"]["reading"] == "n/a (2 of the protocol's 3 seeds)"
+  for seed in (2, 3):  # two seeds just started: their folders hold no rows yet
+    folder = other / "reference" / f"seed{seed}"
+    folder.mkdir()
+    (folder / "config.json").write_text(json.dumps({"seed": seed}))
+    (folder / "evaluations.csv").write_text("")
+    (folder / "windows.csv").write_text("")
+  r = sidebyside.readings(sidebyside.load([str(other)]), reps="exact")
+  assert r["r1"]["reading"] == "n/a (2 of the protocol's 3 seeds)"
 
 
 def test_a_copy_of_a_reference_seed_and_a_broken_line_are_refused(tmp_path):
