@@ -64,8 +64,9 @@ class Config:
   code: str = ""  # the code folder (holding run.py); "" = reference.code_dir()
   command: str = ""
 
-  # Fields a resumed run may change.
-  FREE = ("stop_at", "command", "code_output", "steps", "warnings")
+  # Fields a resumed run may change (``out``: where the folder lies now, so that a folder
+  # copied or moved with its checkpoint resumes where it is).
+  FREE = ("out", "stop_at", "command", "code_output", "steps", "warnings")
 
 
 class Stop(BaseException):

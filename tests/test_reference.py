@@ -8,6 +8,7 @@ import importlib.util
 import json
 import os
 import pathlib
+import shutil
 import subprocess
 import sys
 
@@ -212,6 +213,20 @@ def test_a_run_folder_keeps_its_settings(tmp_path):
         run_lib.parse(["--out", str(tmp_path / "r"), "--seed", "4"]), "cmd"))
 
 
+def test_a_moved_run_folder_resumes_where_it_is(tmp_path):
+  """A folder's config.json names the absolute folder it was started in; a copy elsewhere (another
+  disk, another machine) is the same run, and now says where it is."""
+  run_lib.check_folder(run_lib.config_from(
+      run_lib.parse(["--out", str(tmp_path / "a"), "--seed", "3"]), "cmd"))
+  shutil.copytree(tmp_path / "a", tmp_path / "b")
+  run_lib.check_folder(run_lib.config_from(
+      run_lib.parse(["--out", str(tmp_path / "b"), "--seed", "3"]), "cmd"))
+  assert json.loads((tmp_path / "b" / "config.json").read_text())["out"] == str(tmp_path / "b")
+  with pytest.raises(SystemExit, match="seed=3"):
+    run_lib.check_folder(run_lib.config_from(
+        run_lib.parse(["--out", str(tmp_path / "b"), "--seed", "4"]), "cmd"))
+
+
 def test_evaluation_helpers():
   limited = harness._limited_range(2)
   assert (list(limited(10)), list(limited(5)), list(limited(8))) == ([0], [0, 1], list(range(8)))
@@ -253,15 +268,16 @@ def _same_weights(a, b):
 @pytest.mark.slow
 @needs_reference
 def test_a_run_is_the_same_twice_and_stopped_and_resumed(tmp_path):
-  """Same seed, same rows; stopped at 1,000 and resumed, the same rows and final weights as
-  the run straight through (timing columns aside)."""
-  straight, resumed = tmp_path / "straight", tmp_path / "resumed"
+  """Same seed, same rows; stopped at 1,000, moved to another folder and resumed there, the
+  same rows and final weights as the run straight through (timing columns aside)."""
+  straight, stopped = tmp_path / "straight", tmp_path / "stopped"
   assert _run(straight).returncode == 0
-  stop = _run(resumed, "--stop-at", "1000")
+  stop = _run(stopped, "--stop-at", "1000")
   assert stop.returncode == 3, stop.stdout + stop.stderr
-  assert not (resumed / "final.pt").exists()
-  idle = _run(resumed, "--stop-at", "1000")  # the same command again: nothing to do
+  assert not (stopped / "final.pt").exists()
+  idle = _run(stopped, "--stop-at", "1000")  # the same command again: nothing to do
   assert idle.returncode == 3 and "stopped already" in idle.stdout
+  resumed = shutil.move(stopped, tmp_path / "moved")
   again = _run(resumed)
   assert again.returncode == 0 and "resuming" in again.stdout, again.stdout + again.stderr
   for name in ("evaluations.csv", "windows.csv"):
