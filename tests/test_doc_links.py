@@ -1,18 +1,23 @@
-"""What the docs point to exists: every relative link, every repository path in backticks and
-every ``module.name`` of this repository's modules, in README.md, ARCHITECTURE.md, docs/, the
-READMEs of results/, benchmarks/ and notebooks/, and the code's docstrings and comments. A
-rename that leaves a doc behind fails here rather than in a newcomer's first hour."""
+"""What the docs point to exists: every relative link, every repository path in backticks,
+every ``module.name`` of this repository's modules and every config field's dotted path
+(``top.alpha``, ``--top.alpha 0 0.4``, ``{"middle.target_smoothing": True}``), in README.md,
+ARCHITECTURE.md, docs/, the READMEs of results/, benchmarks/ and notebooks/, and the code's
+docstrings and comments. A rename that leaves a doc behind fails here rather than in a
+newcomer's first hour."""
 
 from __future__ import annotations
 
 import ast
+import dataclasses
 import functools
 import glob
 import os
 import re
+import typing
 
 import pytest
 
+from nonmono_jax.core import config as config_lib
 from tests_support import ROOT
 
 pytestmark = pytest.mark.docs
@@ -28,10 +33,18 @@ PATH = re.compile(r"^(?:%s)/[\w./-]*\w$" % "|".join(map(re.escape, CODE_DIRS)))
 DOTTED = re.compile(r"^([a-z_][a-z0-9_]*)\.([A-Za-z_]\w*)(?:\(.*\))?$")
 PACKAGE = re.compile(r"^(?:python -m )?((?:nonmono_jax|envs|experiments|benchmarks|reference)"
                      r"(?:\.\w+)+)")
-# Names that in the docs are a config's sections (``top.alpha``, a field's dotted path; the
-# docs also name removed fields, so those are not checked here) or a value (``state.done``),
-# not the module of that name.
+# Names that in the docs are a config's sections (``top.alpha``, a field's dotted path, checked
+# by ``CONFIG_PATH``) or a value (``state.done``), not the module of that name.
 NOT_MODULES = {"low", "middle", "middle_ppo", "top", "homeostasis", "state"}
+SECTIONS = tuple(f.name for f in dataclasses.fields(config_lib.AgentConfig)
+                 if dataclasses.is_dataclass(typing.get_type_hints(config_lib.AgentConfig)[f.name]))
+# A section's dotted path anywhere in a code span, not part of a longer name (``hp.top.alpha``,
+# ``modes/top.py``) and not a call (``low.make_low(...)``).
+CONFIG_PATH = re.compile(r"(?<![\w./])(?:--)?((?:%s)(?:\.[a-z_]\w*)+)(?![\w(])"
+                         % "|".join(SECTIONS))
+# Fields named on purpose that main does not have: removed (docs/benchmarks.md, the bfloat16
+# matmul option), added on a demonstration branch (ARCHITECTURE.md), an error's example.
+ABSENT_FIELDS = {"low.matmul", "middle.matmul", "low.action_l2", "middle.action_l2", "top.x"}
 EXTENSIONS = {"py", "json", "jsonl", "csv", "md", "xml", "txt", "toml", "ipynb", "png", "pdf",
               "gif", "npz", "pt", "sh"}  # ``config.json`` is a file
 
@@ -103,7 +116,26 @@ def missing(doc: str, root: str = ROOT) -> list[str]:
         if len(files) == 1 and dotted.group(2) not in defined(files[0]):
           out.append(f"{doc}:{number}: {token} ({os.path.relpath(files[0], ROOT)} has no "
                      f"{dotted.group(2)})")
+      for path in CONFIG_PATH.findall(token):
+        if not _module_name(path) and not is_field(path) and path not in ABSENT_FIELDS:
+          out.append(f"{doc}:{number}: config field {path}")
   return out
+
+
+def _module_name(path: str) -> bool:
+  """``low.make_low``, ``top.py``: a module of the repository and a name it defines, a file."""
+  module, name = path.split(".")[:2]
+  files = modules().get(module, [])
+  return name in EXTENSIONS or (len(files) == 1 and name in defined(files[0]))
+
+
+def is_field(path: str, cls=config_lib.AgentConfig) -> bool:
+  """``top.ppo.value_weighting`` is a field of ``AgentConfig`` (the overrides' dotted path)."""
+  for part in path.split("."):
+    if not dataclasses.is_dataclass(cls) or part not in {f.name for f in dataclasses.fields(cls)}:
+      return False
+    cls = typing.get_type_hints(cls)[part]
+  return True
 
 
 def _importable(dotted: str) -> bool:
@@ -135,6 +167,12 @@ def test_what_the_docstrings_point_to_exists():
   assert not [m for source in sources for m in missing(source)]
 
 
+def test_the_absent_fields_named_are_absent():
+  """The exceptions cannot go stale: a field named absent that exists is checked again."""
+  assert not [path for path in ABSENT_FIELDS if is_field(path)]
+  assert is_field("top.ppo.value_weighting") and is_field("c") and not is_field("top.nope")
+
+
 def test_a_stale_name_is_found(tmp_path):
   """The checks can fail: a link, a path, a function and modules that do not exist are named,
   and what exists is not."""
@@ -142,8 +180,11 @@ def test_a_stale_name_is_found(tmp_path):
   doc.write_text("[a](no_such.md) `nonmono_jax/core/no_such.py` `methods.no_such` "
                  "`methods.build_config` `top.no_such` `config.json` `nonmono_jax.host.io` "
                  "`python -m experiments.no_such` [b](doc.md) `nonmono_jax.host.run` "
-                 "`envs.make` `agent.step(state, t, hp)` `python -m experiments.antpush`\n")
+                 "`envs.make` `agent.step(state, t, hp)` `python -m experiments.antpush` "
+                 "`--top.alpha 0 1` `--top.alfa 0 1` `{\"middle.target_smoothing\": True, "
+                 "\"low.lr\": 1}` `hp.top.nope` `modes/top.py` `low.make_low`\n")
   got = missing("doc.md", str(tmp_path))
   assert [g.split(": ", 1)[1].split(" (")[0] for g in got] == [
       "link no_such.md", "path nonmono_jax/core/no_such.py", "methods.no_such",
-      "module nonmono_jax.host.io", "module experiments.no_such"]
+      "config field top.no_such", "module nonmono_jax.host.io", "module experiments.no_such",
+      "config field top.alfa", "config field low.lr"]
