@@ -1,6 +1,7 @@
 """What the docs point to exists: every relative link, every repository path in backticks,
-every ``module.name`` of this repository's modules and every config field's dotted path
-(``top.alpha``, ``--top.alpha 0 0.4``, ``{"middle.target_smoothing": True}``), in README.md,
+every ``module.name`` of this repository's modules, every config field's dotted path
+(``top.alpha``, ``--top.alpha 0 0.4``, ``{"middle.target_smoothing": True}``) and every
+command-line flag (``--eval_extra``, in code spans and fenced blocks), in README.md,
 ARCHITECTURE.md, docs/, the READMEs of results/, benchmarks/ and notebooks/, and the code's
 docstrings and comments. A rename that leaves a doc behind fails here rather than in a
 newcomer's first hour."""
@@ -42,6 +43,11 @@ SECTIONS = tuple(f.name for f in dataclasses.fields(config_lib.AgentConfig)
 # ``modes/top.py``) and not a call (``low.make_low(...)``).
 CONFIG_PATH = re.compile(r"(?<![\w./])(?:--)?((?:%s)(?:\.[a-z_]\w*)+)(?![\w(])"
                          % "|".join(SECTIONS))
+FLAG = re.compile(r"(?<![\w-])(--[a-z][\w-]*(?:\.[a-z_]\w*)*)(?![\w<.-])")
+# Other programs' flags the docs show (XLA's are all --xla_...): pytest's, Slurm's, Open MPI's.
+EXTERNAL_FLAGS = {"--dist", "--array", "--bind-to", "--cpu-bind", "--cpus-per-task",
+                  "--gpus-per-task", "--job-name", "--mem", "--nodes", "--ntasks-per-node",
+                  "--time"}
 # Fields named on purpose that main does not have: removed (docs/benchmarks.md, the bfloat16
 # matmul option), added on a demonstration branch (ARCHITECTURE.md), an error's example.
 ABSENT_FIELDS = {"low.matmul", "middle.matmul", "low.action_l2", "middle.action_l2", "top.x"}
@@ -91,11 +97,25 @@ def _names(body) -> set:
   return names
 
 
+@functools.cache
+def flags() -> frozenset:
+  """Every flag of the repository's commands: the task CLI's (its config fields' too) and
+  every ``"--name"`` in the code (the other commands' argparse flags)."""
+  from experiments import flags as flags_lib
+  from nonmono_jax.host import methods
+  out = {f for task in methods.TASKS for f in flags_lib.make_parser(task)._option_string_actions}
+  for path in modules_files():
+    out |= set(re.findall(r"[\"'](--[a-z][\w.-]*)", open(path).read()))
+  return frozenset(out)
+
+
 def missing(doc: str, root: str = ROOT) -> list[str]:
   """What ``doc`` (a path under ``root``) names that the repository does not have."""
   base = os.path.dirname(doc)
-  out = []
+  out, fenced = [], False
   for number, line in enumerate(open(os.path.join(root, doc)).read().split("\n"), 1):
+    fenced ^= line.lstrip().startswith("```")
+    spans = [line] if fenced else [m.group(1) for m in CODE.finditer(line)]
     for m in LINK.finditer(line):
       target = m.group(1).split("#")[0]
       if target and not re.match(r"^[a-z]+:", target) and not os.path.exists(
@@ -119,6 +139,10 @@ def missing(doc: str, root: str = ROOT) -> list[str]:
       for path in CONFIG_PATH.findall(token):
         if not _module_name(path) and not is_field(path) and path not in ABSENT_FIELDS:
           out.append(f"{doc}:{number}: config field {path}")
+    for flag in sorted({f for span in spans for f in FLAG.findall(span)}):
+      if not (flag in flags() or flag in EXTERNAL_FLAGS or flag.startswith("--xla_")
+              or flag[2:] in ABSENT_FIELDS):
+        out.append(f"{doc}:{number}: flag {flag} (no command here has it)")
   return out
 
 
@@ -182,9 +206,10 @@ def test_a_stale_name_is_found(tmp_path):
                  "`python -m experiments.no_such` [b](doc.md) `nonmono_jax.host.run` "
                  "`envs.make` `agent.step(state, t, hp)` `python -m experiments.antpush` "
                  "`--top.alpha 0 1` `--top.alfa 0 1` `{\"middle.target_smoothing\": True, "
-                 "\"low.lr\": 1}` `hp.top.nope` `modes/top.py` `low.make_low`\n")
+                 "\"low.lr\": 1}` `hp.top.nope` `modes/top.py` `low.make_low` `--low.<name>`\n"
+                 "```bash\npython -m experiments.antpush --eval_extra held --evaluate 3\n```\n")
   got = missing("doc.md", str(tmp_path))
   assert [g.split(": ", 1)[1].split(" (")[0] for g in got] == [
       "link no_such.md", "path nonmono_jax/core/no_such.py", "methods.no_such",
       "config field top.no_such", "module nonmono_jax.host.io", "module experiments.no_such",
-      "config field top.alfa", "config field low.lr"]
+      "config field top.alfa", "config field low.lr", "flag --top.alfa", "flag --evaluate"]
