@@ -45,9 +45,9 @@ CONFIG_PATH = re.compile(r"(?<![\w./])(?:--)?((?:%s)(?:\.[a-z_]\w*)+)(?![\w(])"
                          % "|".join(SECTIONS))
 FLAG = re.compile(r"(?<![\w-])(--[a-z][\w-]*(?:\.[a-z_]\w*)*)(?![\w<.-])")
 # Other programs' flags the docs show (XLA's are all --xla_...): pytest's, Slurm's, Open MPI's.
-EXTERNAL_FLAGS = {"--dist", "--array", "--bind-to", "--cpu-bind", "--cpus-per-task",
-                  "--gpus-per-task", "--job-name", "--mem", "--nodes", "--ntasks-per-node",
-                  "--time"}
+EXTERNAL_FLAGS = {"--dist", "--no-loadscope-reorder", "--junitxml", "--durations",
+                  "--array", "--bind-to", "--cpu-bind", "--cpus-per-task", "--gpus-per-task",
+                  "--job-name", "--mem", "--nodes", "--ntasks-per-node", "--time"}
 # Fields named on purpose that main does not have: removed (docs/benchmarks.md, the bfloat16
 # matmul option), added on a demonstration branch (ARCHITECTURE.md), an error's example.
 ABSENT_FIELDS = {"low.matmul", "middle.matmul", "low.action_l2", "middle.action_l2", "top.x"}
