@@ -69,3 +69,9 @@ def test_no_undefined_or_unused_names_or_long_lines():
   r = subprocess.run([sys.executable, "-m", "ruff", "check", "--no-cache",
                       "--output-format", "concise", ROOT], capture_output=True, text=True)
   assert r.returncode == 0, r.stdout + r.stderr
+
+
+def test_the_longest_test_files_named_first_exist():
+  """``conftest.LONGEST_FIRST`` names files (a renamed one would silently go back in line)."""
+  from tests import conftest
+  assert all(os.path.exists(os.path.join(ROOT, "tests", f)) for f in conftest.LONGEST_FIRST)
