@@ -9,16 +9,16 @@ newcomer's first hour."""
 from __future__ import annotations
 
 import ast
-import dataclasses
 import functools
 import glob
 import os
 import re
-import typing
 
 import pytest
 
+from experiments import flags as flags_lib
 from nonmono_jax.core import config as config_lib
+from nonmono_jax.host import methods
 from tests_support import ROOT
 
 pytestmark = pytest.mark.docs
@@ -37,8 +37,12 @@ PACKAGE = re.compile(r"^(?:python -m )?((?:nonmono_jax|envs|experiments|benchmar
 # Names that in the docs are a config's sections (``top.alpha``, a field's dotted path, checked
 # by ``CONFIG_PATH``) or a value (``state.done``), not the module of that name.
 NOT_MODULES = {"low", "middle", "middle_ppo", "top", "homeostasis", "state"}
-SECTIONS = tuple(f.name for f in dataclasses.fields(config_lib.AgentConfig)
-                 if dataclasses.is_dataclass(typing.get_type_hints(config_lib.AgentConfig)[f.name]))
+# AgentConfig's dotted paths as the CLI walks them (``flags.fields``: every leaf), with the
+# sub-configs they lie in (``top.ppo``: an override may name a whole one).
+LEAVES = [name for name, *_ in flags_lib.fields(config_lib.AgentConfig)]
+CONFIG_PATHS = frozenset(leaf.rsplit(".", n)[0] for leaf in LEAVES
+                         for n in range(leaf.count(".") + 1))
+SECTIONS = sorted({leaf.split(".")[0] for leaf in LEAVES if "." in leaf})
 # A section's dotted path anywhere in a code span, not part of a longer name (``hp.top.alpha``,
 # ``modes/top.py``) and not a call (``low.make_low(...)``).
 CONFIG_PATH = re.compile(r"(?<![\w./])(?:--)?((?:%s)(?:\.[a-z_]\w*)+)(?![\w(])"
@@ -101,8 +105,6 @@ def _names(body) -> set:
 def flags() -> frozenset:
   """Every flag of the repository's commands: the task CLI's (its config fields' too) and
   every ``"--name"`` in the code (the other commands' argparse flags)."""
-  from experiments import flags as flags_lib
-  from nonmono_jax.host import methods
   out = {f for task in methods.TASKS for f in flags_lib.make_parser(task)._option_string_actions}
   for path in modules_files():
     out |= set(re.findall(r"[\"'](--[a-z][\w.-]*)", open(path).read()))
@@ -153,13 +155,10 @@ def _module_name(path: str) -> bool:
   return name in EXTENSIONS or (len(files) == 1 and name in defined(files[0]))
 
 
-def is_field(path: str, cls=config_lib.AgentConfig) -> bool:
-  """``top.ppo.value_weighting`` is a field of ``AgentConfig`` (the overrides' dotted path)."""
-  for part in path.split("."):
-    if not dataclasses.is_dataclass(cls) or part not in {f.name for f in dataclasses.fields(cls)}:
-      return False
-    cls = typing.get_type_hints(cls)[part]
-  return True
+def is_field(path: str) -> bool:
+  """``top.ppo.value_weighting`` (or ``top.ppo``) is a field of ``AgentConfig`` (the overrides'
+  dotted path)."""
+  return path in CONFIG_PATHS
 
 
 def _importable(dotted: str) -> bool:
