@@ -31,38 +31,16 @@ import numpy as np
 
 from experiments import curves
 from nonmono_jax.core import evaluate
-from nonmono_jax.host import checkpoints, plan as plan_lib
-from nonmono_jax.host import programs as programs_lib
-
-
-def _saved(run_dir: str, method: str | None):
-  """(plan, method, its checkpoints, their latest step) of a run folder; ``method`` defaults
-  to the run's first. The caller closes the checkpoints."""
-  plan = plan_lib.load_run(run_dir)  # its config.json, whatever today's presets say
-  method = next(iter(plan.configs)) if method is None else method
-  if method not in plan.configs:
-    raise ValueError(f"method {method!r} is not in this run ({', '.join(plan.configs)})")
-  ckpts = checkpoints.Checkpoints(os.path.join(run_dir, "checkpoints", method))
-  step = ckpts.latest_step()
-  if step is None:
-    ckpts.close()
-    raise ValueError(f"no checkpoint of {method} in {run_dir}")
-  return plan, method, ckpts, step
+from nonmono_jax.host import checkpoints, programs as programs_lib
 
 
 def rollout(run_dir: str, method: str | None = None, seed: int = 0, key: int = 0) -> dict:
   """One evaluation episode of a saved run: positions, goals, blocks, success per step."""
-  plan, method, ckpts, step = _saved(run_dir, method)
-  try:
-    config, spec = plan.configs[method], plan.spec
-    if not 0 <= seed < spec.seeds:
-      raise ValueError(f"seed must be in [0, {spec.seeds}), got {seed}")
-    trainer = programs_lib.Programs(plan).trainer(method)
-    env = trainer.agent.env
-    like = jax.eval_shape(trainer.init, jax.random.PRNGKey(0))
-    step, states = ckpts.restore_newest(like, move_aside=False)
-  finally:
-    ckpts.close()
+  plan, method, _ = programs_lib.saved_method(run_dir, method)
+  if not 0 <= seed < plan.spec.seeds:
+    raise ValueError(f"seed must be in [0, {plan.spec.seeds}), got {seed}")
+  plan, method, step, trainer, states = programs_lib.restored(run_dir, method)
+  config, env = plan.configs[method], trainer.agent.env
   # The policies S_E evaluates: the target actors by default, as the paper's code.
   pick = lambda tree: evaluate.acting_params(jax.tree.map(lambda x: x[seed], tree),
                                              config.eval_target_networks)
@@ -89,8 +67,7 @@ def ranked_seed(run_dir: str, method: str | None, which: str) -> tuple[int, floa
   the latest evaluation the latest checkpoint covers. A tie goes to the seed with the higher
   (best) or lower (worst) mean S_E over all its evaluations up to there, then to the lower
   index."""
-  plan, method, ckpts, step = _saved(run_dir, method)
-  ckpts.close()
+  plan, method, step = programs_lib.saved_method(run_dir, method)
   covered = step * plan.configs[method].num_envs
   rows = [r for r in curves.load([run_dir])
           if r["method"] == method and int(r["env_step"]) <= covered]

@@ -14,6 +14,7 @@ import jax
 import numpy as np
 
 from nonmono_jax.core import train
+from nonmono_jax.host import checkpoints, plan as plan_lib
 from nonmono_jax.host.plan import Plan
 
 EVAL_RECORD_BYTES = 64  # an evaluation step's record (position, goal, blocks, success), about
@@ -36,6 +37,47 @@ class Programs:
       self._trainers[names] = train.make_group_trainer(env, [plan.configs[n] for n in names],
                                                        **size)
     return self._trainers[names]
+
+
+def saved_method(run_dir: str, method: str | None = None) -> tuple[Plan, str, int]:
+  """(plan, method, its newest checkpoint's step) of a run folder: the plan from its
+  config.json (whatever today's presets say), ``method`` by default the run's first. Raises
+  ValueError naming what is missing."""
+  plan = plan_lib.load_run(run_dir)
+  method = next(iter(plan.configs)) if method is None else method
+  if method not in plan.configs:
+    raise ValueError(f"method {method!r} is not in this run ({', '.join(plan.configs)})")
+  ckpts = checkpoints.Checkpoints(os.path.join(run_dir, "checkpoints", method))
+  try:
+    step = ckpts.latest_step()
+  finally:
+    ckpts.close()
+  if step is None:
+    raise ValueError(f"no checkpoint of {method} in {run_dir} (the committed results hold "
+                     "rows and configs only)")
+  return plan, method, step
+
+
+def restored(run_dir: str, method: str | None = None, step: int | None = None):
+  """(plan, method, step, trainer, states) of a saved run: ``method``'s train state (every
+  seed on the leading axis) at the checkpoint of ``step``, by default the newest that
+  restores; ``trainer`` is its program (``Programs(plan).trainer(method)``: its agent, env and
+  lanes), built but not compiled."""
+  plan, method, _ = saved_method(run_dir, method)
+  trainer = Programs(plan).trainer(method)
+  like = jax.eval_shape(trainer.init, jax.random.PRNGKey(0))
+  ckpts = checkpoints.Checkpoints(os.path.join(run_dir, "checkpoints", method))
+  try:
+    if step is None:
+      step, states = ckpts.restore_newest(like, move_aside=False)
+    elif step in ckpts.manager.all_steps():
+      states = ckpts.restore(step, like)
+    else:
+      raise ValueError(f"no checkpoint of {method} at step {step} in {run_dir} (it has "
+                       f"{', '.join(map(str, sorted(ckpts.manager.all_steps())))})")
+  finally:
+    ckpts.close()
+  return plan, method, step, trainer, states
 
 
 def state_bytes(programs: Programs, names) -> int:
