@@ -11,6 +11,7 @@ import subprocess
 import sys
 import time
 
+import numpy as np
 import pytest
 
 from experiments import cli
@@ -430,3 +431,47 @@ def test_any_registered_task_runs_through_python_m_experiments():
   bad = subprocess.run([sys.executable, "-m", "experiments", "HalfCheetah"], cwd=ROOT,
                        capture_output=True, text=True, env=env)
   assert bad.returncode == 2 and "unknown task HalfCheetah; tasks: AntPush" in bad.stderr
+
+
+def _by_hand(weights, x):
+  """An MLP in nn.Linear's layout ([w0, b0, ...], weight (out, in)) computed in numpy."""
+  for i in range(0, len(weights), 2):
+    x = x @ weights[i].T + weights[i + 1]
+    x = np.maximum(x, 0) if i < len(weights) - 2 else np.tanh(x)
+  return x
+
+
+def test_cross_eval_exports_the_actors_each_seed_was_evaluated_with(reference):
+  """``reference.cross_eval``'s side in this venv: per seed the target actors of the newest
+  checkpoint in torch's layout, which computed by hand act as our actors on the probes, the
+  scales, and the run's own evaluation at that step; an older step on request."""
+  from nonmono_jax.host import programs
+  from reference import cross_eval
+  out = cross_eval.export(reference, "ours")
+  meta = json.loads(str(out["meta"]))
+  assert (meta["method"], meta["step"], meta["seeds"]) == ("ours", 800, [0, 1])
+  for k in meta["seeds"]:
+    for name, inputs in (("low", [out["probe_obs"], out["probe_goal"]]),
+                         ("middle", [out["probe_obs"], np.broadcast_to(
+                             out["middle_context"], (64, len(out["middle_context"])))])):
+      weights = [out[f"seed{k}/{name}/{i}"] for i in range(6)]
+      assert weights[0].shape[0] == 16 and weights[1].shape == (16,)
+      scale = out[f"{name}_scale"]
+      np.testing.assert_allclose(_by_hand(weights, np.concatenate(inputs, 1)) * scale,
+                                 out[f"seed{k}/probe_{name}"], rtol=0, atol=1e-5 * scale.max())
+  rows = {int(r["seed"]): r for r in _rows(reference)
+          if r["method"] == "ours" and int(r["env_step"]) == meta["env_step"]}
+  assert {int(k): v["eval_distance"] for k, v in meta["ours"].items()} == {
+      k: float(r["eval_distance"]) for k, r in rows.items()}
+  # the target actors (eval_target_networks), which after training are not the online ones
+  *_, states = programs.restored(reference, "ours", 600)
+  low = states.low.params
+  older = cross_eval.export(reference, "ours", step=600)
+  assert json.loads(str(older["meta"]))["step"] == 600
+  target = np.asarray(low.target_actor["params"]["dense_0"]["kernel"][1]).T
+  np.testing.assert_array_equal(older["seed1/low/0"], target)
+  assert not np.array_equal(np.asarray(low.actor["params"]["dense_0"]["kernel"][1]).T, target)
+  with pytest.raises(ValueError, match="no checkpoint of ours at step 100"):
+    cross_eval.export(reference, "ours", step=100)
+  with pytest.raises(ValueError, match="the code's actors are 300-300"):
+    cross_eval.check_config(programs.saved_method(reference)[0].configs["ours"])

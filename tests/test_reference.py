@@ -353,3 +353,87 @@ def test_the_codes_training_rate_is_read_per_cpu_second_after_its_warmup(tmp_pat
   windows = logs.read_csv(tmp_path / "code" / "windows.csv", drop=())
   assert [w["step"] for w in windows] == ["0", "100", "200"]
   assert all(float(w["train_steps_per_cpu_s"]) > 0 for w in windows)
+
+
+def _actors_npz(path, **broken):
+  """Fresh Ant-shaped actors of ours (the Low: (s, g) -> 8 torques in +-30; the Middle: s ->
+  a goal in +-(10, 10, 0.5)) as ``reference.cross_eval.export`` writes them."""
+  import jax
+  from nonmono_jax.core import td3
+  from nonmono_jax.core.config import TD3Config
+  from reference import cross_eval
+  config = TD3Config(hidden=(300, 300), init="torch")
+  low_td3 = td3.make_td3(30, 3, 8, 30.0, config)
+  middle_td3 = td3.make_td3(30, 0, 3, (10.0, 10.0, 0.5), config)
+  low = low_td3.init(jax.random.PRNGKey(0)).params
+  middle = middle_td3.init(jax.random.PRNGKey(1)).params
+  rng = np.random.default_rng(0)
+  obs = rng.normal(size=(64, 30)).astype(np.float32)
+  goal = rng.normal(size=(64, 3)).astype(np.float32)
+  data = {"probe_obs": obs, "probe_goal": goal, "low_scale": np.full(8, 30.0, np.float32),
+          "middle_scale": np.asarray([10, 10, 0.5], np.float32),
+          "middle_context": np.zeros(0, np.float32),
+          "seed0/probe_low": np.asarray(jax.vmap(low_td3.act, (None, 0, 0))(low, obs, goal)),
+          "seed0/probe_middle": np.asarray(jax.vmap(
+              lambda o: middle_td3.act(middle, o, np.zeros(0, np.float32)))(obs))}
+  for name, params in (("low", low), ("middle", middle)):
+    for i, w in enumerate(cross_eval.torch_layout(params.actor)):
+      data[f"seed0/{name}/{i}"] = w
+  data.update(broken)
+  meta = {"seeds": [0], "contacts": "mujoco200",
+          "ours": {"0": {"eval_success": 0.0, "eval_distance": 18.0}}}
+  np.savez(path, meta=np.asarray(json.dumps(meta)), **data)
+  return data
+
+
+def _cross_eval(path):
+  return subprocess.run([str(VENV / "bin" / "python"), "-m", "reference.cross_eval", "--weights",
+                         str(path), "--episodes", "2", "--episode-len", "30"], cwd=ROOT,
+                        capture_output=True, text=True, timeout=900,
+                        env=dict(os.environ, PYTHONPATH=str(ROOT)))
+
+
+@needs_reference
+def test_the_codes_evaluation_runs_our_actors(tmp_path):
+  """``reference.cross_eval`` in the reference venv: our actors' weights go into the code's
+  ActorLow and ActorHigh, act as ours on the probes and are run by the code's evaluation; the
+  layers' rows out of order, or a scale not the code's, are refused before evaluating."""
+  path = tmp_path / "actors.npz"
+  data = _actors_npz(path)
+  r = _cross_eval(path)
+  assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
+  [result] = json.loads(path.with_suffix(".json").read_text())
+  assert result["code_success"] == 0.0 and len(result["code_distances"]) == 2
+  assert all(17 < d < 21 for d in result["code_distances"])  # 30 steps from the start
+  assert (result["eval_distance"], "ours S_E 0.00 distance 18.00") == (18.0, r.stdout.split(
+      "; ")[-1].strip())
+  rows = data["seed0/low/0"][::-1].copy()  # the first layer's units out of order, not its biases
+  _actors_npz(path, **{"seed0/low/0": rows})
+  r = _cross_eval(path)
+  assert r.returncode != 0
+  assert "the code's low actor with the other side's weights acts otherwise" in r.stderr
+  _actors_npz(path, low_scale=np.full(8, 20.0, np.float32))
+  r = _cross_eval(path)
+  assert r.returncode != 0 and "the Low's action scale is [20.0" in r.stderr
+
+
+@pytest.mark.slow
+@needs_reference
+def test_our_evaluation_runs_the_codes_actors(tmp_path):
+  """``reference.cross_eval`` on a run folder of the code's: its final target actors act in
+  our evaluation as in the code's (the probe check) and both evaluate them."""
+  run = tmp_path / "run"
+  assert _run(run).returncode == 0
+  out = tmp_path / "cross.json"
+  r = subprocess.run([sys.executable, "-m", "reference.cross_eval", str(run), "--episodes", "2",
+                      "--episode-len", "50", "--json", str(out)], cwd=ROOT, capture_output=True,
+                     text=True, timeout=900, env=dict(os.environ, PYTHONPATH=str(ROOT)))
+  assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
+  got = json.loads(out.read_text())
+  assert (got["t"], got["checkpoint"], got["contacts"], got["seeds"]) == (
+      1500, "final.pt", "mujoco3", [0])
+  [row] = got["results"]
+  for side in ("our", "code"):
+    assert row[f"{side}_success"] == 0.0 and len(row[f"{side}_distances"]) == 2
+    assert all(13 < d < 21 for d in row[f"{side}_distances"])  # 50 steps from the start
+  assert got["difference"]["episodes"] == [2, 2]
