@@ -7,6 +7,8 @@ attributes after importing it:
 * ``utils.create_maze_env``: each env made (the run's first by ``run.load_params``, the
   training env, each evaluation's and each video rollout's) gets its ant's ``np_random`` and
   its action space's generator seeded from (seed, how many envs were made before it);
+* ``environments.maze_env.tempfile``: the model file each env writes is removed once the env
+  has loaded it, and its descriptor closed (``_XmlFiles``; the code leaves both);
 * ``hiro.np`` (numpy seen through a proxy) and ``gym.spaces.Box.sample``: the first call of
   each loop iteration (the Low's exploration noise, or the warm-up's random action) calls the
   harness's loop hook first, which writes rows and checkpoints, or on resume restores one;
@@ -21,15 +23,16 @@ attributes after importing it:
 """
 
 import builtins
+import contextlib
 import dataclasses
 import json
 import os
 import pathlib
 import platform
 import random
-import resource
 import subprocess
 import sys
+import tempfile
 import time
 
 import numpy as np
@@ -140,6 +143,7 @@ class Harness:
     self.t = None  # the loop iteration now running
     self.resume = None  # the checkpoint to restore at the first loop iteration
     self.envs_made = 0
+    self.xml_files = _XmlFiles()
     self.recording = None  # while evaluating: the list of each episode's last xyz
     self.evals = {}
     self.window = _new_window()
@@ -171,6 +175,7 @@ class Harness:
     import gym.spaces
     import utils
     utils.create_maze_env = self._env_factory(utils.create_maze_env)
+    sys.modules["environments.maze_env"].tempfile = self.xml_files
     import hiro
     self.hiro = hiro
     self.train_code = hiro.train.__code__
@@ -189,7 +194,10 @@ class Harness:
 
   def _env_factory(self, create):
     def create_seeded(*args, **kwargs):
-      env = create(*args, **kwargs)
+      try:
+        env = create(*args, **kwargs)
+      finally:
+        self.xml_files.remove()
       index, self.envs_made = self.envs_made, self.envs_made + 1
       if self.config.seeded:
         ant_seed, space_seed = np.random.SeedSequence([self.config.seed, index]).generate_state(2)
@@ -516,6 +524,32 @@ class Harness:
     path.write_text(json.dumps(data, indent=1) + "\n")
 
 
+class _XmlFiles:
+  """The code's ``maze_env`` writes each env's model to ``tempfile.mkstemp(suffix='.xml')``
+  and keeps neither the open file descriptor nor the file (over 100 files in the temp folder
+  a run, and a descriptor each, on an evaluation's every env). Stands in for its ``tempfile``:
+  the descriptor is closed at once (the code writes through the path) and the file removed
+  once the env has loaded it."""
+
+  def __init__(self):
+    self.paths = []
+
+  def __getattr__(self, name):
+    return getattr(tempfile, name)
+
+  def mkstemp(self, *args, **kwargs):
+    fd, path = tempfile.mkstemp(*args, **kwargs)
+    os.close(fd)
+    self.paths.append(path)
+    return fd, path
+
+  def remove(self):
+    for path in self.paths:
+      with contextlib.suppress(FileNotFoundError):
+        os.remove(path)
+    self.paths.clear()
+
+
 def _one_row_more(buffer_class):
   """ExperienceBufferLow with one row more than asked. Its ``sample`` draws indices in
   ``[0, offset]`` (one past the filled rows: a zero row); with the buffer sized at
@@ -577,8 +611,6 @@ def _limited_range(episodes):
 def main(argv=None):
   argv = sys.argv[1:] if argv is None else argv
   config = Config(**json.loads(pathlib.Path(argv[0]).read_text()))
-  soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
-  resource.setrlimit(resource.RLIMIT_NOFILE, (hard, hard))  # the maze env leaks an fd per env
   return Harness(config).run()
 
 

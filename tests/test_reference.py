@@ -11,6 +11,7 @@ import pathlib
 import shutil
 import subprocess
 import sys
+import tempfile
 
 import mujoco
 import numpy as np
@@ -237,6 +238,19 @@ def test_evaluation_helpers():
   assert harness._one_row_more(Buffer)(100, 3).capacity == 101
 
 
+def test_the_codes_model_files_are_closed_and_removed(tmp_path):
+  """``_XmlFiles``, the code's maze env's ``tempfile``: a descriptor closed at once, the file
+  there until the env is made, then removed; the rest of ``tempfile`` as it is."""
+  files = harness._XmlFiles()
+  fd, path = files.mkstemp(text=True, suffix=".xml", dir=tmp_path)
+  with pytest.raises(OSError):
+    os.fstat(fd)
+  pathlib.Path(path).write_text("<mujoco/>")
+  files.remove()
+  assert not os.path.exists(path) and files.paths == []
+  assert files.gettempdir() == tempfile.gettempdir()
+
+
 # ----- with the reference venv and the fetched code ---------------------------------------------
 
 VENV = pathlib.Path(os.environ.get("REFERENCE_VENV") or reference.default_venv())
@@ -248,10 +262,10 @@ TINY = ["--steps", "1500", "--start-timestep", "300", "--evaluation-interval", "
         "--window", "250"]
 
 
-def _run(out, *extra):
+def _run(out, *extra, **environ):
   return subprocess.run([sys.executable, "-m", "reference.run", "--out", str(out), *TINY,
                          *extra], cwd=ROOT, capture_output=True, text=True, timeout=900,
-                        env=dict(os.environ, PYTHONPATH=str(ROOT)))
+                        env=dict(os.environ, PYTHONPATH=str(ROOT), **environ))
 
 
 def _same_weights(a, b):
@@ -339,6 +353,17 @@ def test_a_run_with_the_studys_settings_leaves_out_the_ppo_evaluation(tmp_path):
   assert all(int(w["segments"]) == 25 and 0 <= float(w["subgoal_reached"]) <= 1
              and float(w["subgoal_start"]) - float(w["subgoal_distance"])
              == pytest.approx(float(w["subgoal_progress"]), abs=1e-9) for w in windows)
+
+
+@needs_reference
+def test_a_run_leaves_no_model_files_behind(tmp_path):
+  """The code's maze env writes its model to a new temp file for each env it makes (the
+  training env and every evaluation's) and keeps it; the harness removes each once loaded."""
+  tmp = tmp_path / "tmp"
+  tmp.mkdir()
+  r = _run(tmp_path / "run", "--steps", "1001", TMPDIR=str(tmp))
+  assert r.returncode == 0, r.stdout + r.stderr
+  assert sorted(p.name for p in tmp.rglob("*.xml")) == []
 
 
 @needs_reference
