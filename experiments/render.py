@@ -14,7 +14,10 @@ to it; a key below the maze names each mark (``KEY``).
     python -m experiments.render runs/push --method ours --seed best    # DIR/ours_seed<N>.gif
 
 A folder needs its checkpoints (``checkpoints/``): the committed results hold rows and configs
-only.
+only. A run folder of the paper's code (``reference.run``, with its ``final.pt`` or
+``checkpoint.pt``; the reference venv reads it) rolls the code's target actors in our Ant Push
+env with the run's engine settings (``reference.cross_eval``, which finds our evaluation and
+the code's alike on such actors): ``DIR/the-code_seed<N>.gif``.
 
 Both robots are drawn the same way (torso xy for the ant), with matplotlib: no OpenGL needed.
 """
@@ -22,6 +25,7 @@ Both robots are drawn the same way (torso xy for the ant), with matplotlib: no O
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import sys
 
@@ -34,18 +38,52 @@ from nonmono_jax.core import evaluate
 from nonmono_jax.host import checkpoints, programs as programs_lib
 
 
-def rollout(run_dir: str, method: str | None = None, seed: int = 0, key: int = 0) -> dict:
-  """One evaluation episode of a saved run: positions, goals, blocks, success per step."""
+def _saved_policy(run_dir: str, method: str | None, seed: int):
+  """(config, agent, Low params, Middle params, what the roll says of its run) of a run
+  folder of ours: the policies S_E evaluates, the target actors by default, as the paper's
+  code's."""
   plan, method, _ = programs_lib.saved_method(run_dir, method)
   if not 0 <= seed < plan.spec.seeds:
     raise ValueError(f"seed must be in [0, {plan.spec.seeds}), got {seed}")
   plan, method, step, trainer, states = programs_lib.restored(run_dir, method)
-  config, env = plan.configs[method], trainer.agent.env
-  # The policies S_E evaluates: the target actors by default, as the paper's code.
+  config = plan.configs[method]
   pick = lambda tree: evaluate.acting_params(jax.tree.map(lambda x: x[seed], tree),
                                              config.eval_target_networks)
-  low_params, middle_params = pick(states.low.params), pick(states.middle.params)
-  agent = trainer.agent
+  info = {"task": plan.task, "method": method, "seed": seed, "step": step,
+          "num_envs": config.num_envs, "warnings": plan.warnings}
+  return config, trainer.agent, pick(states.low.params), pick(states.middle.params), info
+
+
+def _code_policy(run_dir: str):
+  """The same for a run folder of the paper's code (``reference.run``): its target actors
+  (final.pt, else checkpoint.pt, read in the reference venv) in our Ant Push agent, with its
+  engine settings (``reference.cross_eval``)."""
+  import tempfile
+
+  from reference import cross_eval
+  with tempfile.TemporaryDirectory() as tmp:
+    path = os.path.join(tmp, "actors.npz")
+    if cross_eval.code_actors_npz(run_dir, path):
+      raise ValueError(f"could not read the code's weights in {run_dir} (the reference venv: "
+                       "python -m reference.setup)")
+    data = dict(np.load(path))
+  meta = json.loads(str(data["meta"]))
+  k = meta["seeds"][0]
+  config, agent, low, middle = cross_eval.our_policy(data, k, meta["contacts"])
+  info = {"task": "AntPush", "method": "the-code", "seed": k, "step": meta["t"],
+          "num_envs": 1, "warnings": []}
+  return config, agent, low, middle, info
+
+
+def rollout(run_dir: str, method: str | None = None, seed: int = 0, key: int = 0) -> dict:
+  """One evaluation episode of a saved run: positions, goals, blocks, success per step. A
+  run folder of the paper's code (``reference.run``) rolls its actors in our env."""
+  from reference import cross_eval
+  if cross_eval.is_code_run(run_dir):
+    config, agent, low_params, middle_params, info = _code_policy(run_dir)
+  else:
+    config, agent, low_params, middle_params, info = _saved_policy(run_dir, method, seed)
+  env = agent.env
   goal_act = lambda params, obs, k: agent.middle.policy(params, obs)
   run_episode = evaluate.make_episode(env, config.c, agent.low.td3.act, goal_act,
                                       config.eval_goal)
@@ -58,8 +96,7 @@ def rollout(run_dir: str, method: str | None = None, seed: int = 0, key: int = 0
     return {name: jp.concatenate([first[name][None], records[name]]) for name in first}
 
   out = jax.tree.map(np.asarray, episode(jax.random.PRNGKey(key)))
-  return {**out, "env": env, "task": plan.task, "method": method, "seed": seed, "step": step,
-          "num_envs": config.num_envs, "warnings": plan.warnings}
+  return {**out, "env": env, **info}
 
 
 def ranked_seed(run_dir: str, method: str | None, which: str) -> tuple[int, float, int]:
@@ -174,9 +211,10 @@ def key(ax) -> list[str]:
 
 
 def main(argv=None) -> int:
+  from reference import cross_eval
   checkpoints.quiet_storage_leftovers()
   p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-  p.add_argument("dir", help="a run folder")
+  p.add_argument("dir", help="a run folder of ours, or of the paper's code (reference.run)")
   p.add_argument("--method", default=None, help="default: the run's first method")
   p.add_argument("--seed", default="0",
                  help="which trained seed: a number, or best / worst by S_E at the checkpoint")
@@ -195,6 +233,9 @@ def main(argv=None) -> int:
     p.exit(2, f"{p.prog}: error: --seed must be a number, best or worst, got {args.seed!r}\n")
   try:
     seed = int(args.seed) if args.seed.isdigit() else None
+    if seed is None and cross_eval.is_code_run(args.dir):
+      raise ValueError("a run folder of the paper's code holds one seed: --seed best / worst "
+                       "rank the seeds of a run of ours")
     if seed is None:
       seed, score, at = ranked_seed(args.dir, args.method, args.seed)
       print(f"{args.seed} seed: {seed} (S_E {score:.2f} at {at} env steps)")
@@ -203,7 +244,7 @@ def main(argv=None) -> int:
     p.exit(2, f"{p.prog}: error: {e}\n")
   for warning in roll["warnings"]:
     print(f"warning: {warning}", file=sys.stderr)
-  out = args.out or os.path.join(args.dir, f"{roll['method']}_seed{seed}.gif")
+  out = args.out or os.path.join(args.dir, f"{roll['method']}_seed{roll['seed']}.gif")
   try:
     n = draw(roll, out, args.max_frames)
   except OSError as e:

@@ -186,12 +186,9 @@ def _td3_params(weights):
   return td3.TD3Params(actor=actor, critic=None, target_actor=actor, target_critic=None)
 
 
-def our_evaluation(data, k, contacts, episodes=50, episode_len=0, draws=1, draw_seed=0,
-                   optimised=True):
-  """Our evaluation (the Ant preset's kind) of seed ``k``'s actors in ``data`` after the
-  probe check: [(S_E, final distance of each episode)] per draw."""
-  import jax
-  from nonmono_jax.core import evaluate
+def our_policy(data, k, contacts, episode_len=0, optimised=True):
+  """(config, agent, Low params, Middle params) of ours holding seed ``k``'s actors from
+  ``data``, after the scale and probe checks."""
   config, agent = our_agent(contacts, episode_len, optimised)
   low, middle = (_td3_params([data[f"seed{k}/{n}/{i}"] for i in range(6)])
                  for n in ("low", "middle"))
@@ -201,6 +198,16 @@ def our_evaluation(data, k, contacts, episodes=50, episode_len=0, draws=1, draw_
   _check_gap("our", "low", low_act(low, obs, goal), data[f"seed{k}/probe_low"], agent.low.limit)
   _check_gap("our", "middle", middle_act(middle, obs), data[f"seed{k}/probe_middle"],
              agent.middle.goal_range)
+  return config, agent, low, middle
+
+
+def our_evaluation(data, k, contacts, episodes=50, episode_len=0, draws=1, draw_seed=0,
+                   optimised=True):
+  """Our evaluation (the Ant preset's kind) of seed ``k``'s actors in ``data`` after the
+  checks: [(S_E, final distance of each episode)] per draw."""
+  import jax
+  from nonmono_jax.core import evaluate
+  config, agent, low, middle = our_policy(data, k, contacts, episode_len, optimised)
   goal_act = lambda params, o, key: agent.middle.policy(params, o)
   episode = evaluate.make_episode(agent.env, config.c, agent.low.td3.act, goal_act,
                                   config.eval_goal)
@@ -211,6 +218,24 @@ def our_evaluation(data, k, contacts, episodes=50, episode_len=0, draws=1, draw_
     o = run(jax.random.split(jax.random.fold_in(jax.random.PRNGKey(draw_seed), d), episodes))
     out.append((float(np.mean(o.success)), [float(x) for x in np.asarray(o.distance)]))
   return out
+
+
+def is_code_run(run_dir) -> bool:
+  """Whether ``run_dir`` is a run folder of the code's (``reference.run``) with weights."""
+  return any((pathlib.Path(run_dir) / f).exists() for f in ("final.pt", "checkpoint.pt"))
+
+
+def code_checkpoint(run_dir) -> pathlib.Path:
+  """The code's run's newest weights: ``final.pt``, else ``checkpoint.pt``."""
+  run = pathlib.Path(run_dir)
+  return run / "final.pt" if (run / "final.pt").exists() else run / "checkpoint.pt"
+
+
+def code_actors_npz(run_dir, path, venv=None, **draws) -> int:
+  """Writes the code's run's target actors (and, with ``draws``' ``draws`` > 0, the code's
+  evaluations of them) to ``path`` from the reference venv; its exit code."""
+  return _reference_venv(venv, ["--code-checkpoint", str(code_checkpoint(run_dir)),
+                                "--weights", str(path)], **{"draws": 0, **draws})
 
 
 # ----- both venvs: the checks ----------------------------------------------------------------
@@ -407,14 +432,19 @@ def mirror_summary(meta, ours) -> dict:
           "difference": diff}
 
 
-def _reference_venv(args, *inside_args):
-  venv = pathlib.Path(args.venv) if args.venv else reference.default_venv()
-  rest = ["--draws", str(args.draws), "--draw-seed", str(args.draw_seed), "--episodes",
-          str(args.episodes), "--episode-len", str(args.episode_len), "--threads",
-          str(args.threads)]
+def _reference_venv(venv, inside_args, draws=1, draw_seed=0, episodes=50, episode_len=0,
+                    threads=1) -> int:
+  venv = pathlib.Path(venv) if venv else reference.default_venv()
+  rest = ["--draws", str(draws), "--draw-seed", str(draw_seed), "--episodes", str(episodes),
+          "--episode-len", str(episode_len), "--threads", str(threads)]
   env = dict(os.environ, PYTHONPATH=str(reference.PACKAGE.parent))
   return subprocess.run([str(venv / "bin" / "python"), "-m", "reference.cross_eval",
                          *inside_args, *rest], env=env).returncode
+
+
+def _draws(args) -> dict:
+  return {"draws": args.draws, "draw_seed": args.draw_seed, "episodes": args.episodes,
+          "episode_len": args.episode_len, "threads": args.threads}
 
 
 def of_ours(args, tmp) -> dict | None:
@@ -424,7 +454,7 @@ def of_ours(args, tmp) -> dict | None:
   check_config(plan.configs[method])
   weights = os.path.join(tmp, "actors.npz")
   np.savez(weights, **export(args.run, method, args.step, args.seeds))
-  if _reference_venv(args, "--weights", weights):
+  if _reference_venv(args.venv, ["--weights", weights], **_draws(args)):
     return None
   results = json.loads(pathlib.Path(weights).with_suffix(".json").read_text())
   return summary(json.loads(str(np.load(weights)["meta"])), results)
@@ -432,10 +462,8 @@ def of_ours(args, tmp) -> dict | None:
 
 def of_the_code(args, tmp) -> dict | None:
   """Our evaluation of the code's actors (RUN is the code's)."""
-  run = pathlib.Path(args.run)
-  checkpoint = run / "final.pt" if (run / "final.pt").exists() else run / "checkpoint.pt"
   weights = os.path.join(tmp, "actors.npz")
-  if _reference_venv(args, "--code-checkpoint", str(checkpoint), "--weights", weights):
+  if code_actors_npz(args.run, weights, args.venv, **_draws(args)):
     return None
   data = np.load(weights)
   meta = json.loads(str(data["meta"]))
@@ -462,9 +490,8 @@ def main(argv=None):
                      "code's (reference.run)")
   from nonmono_jax.host import checkpoints
   checkpoints.quiet_storage_leftovers()
-  code_run = any((pathlib.Path(args.run) / f).exists() for f in ("final.pt", "checkpoint.pt"))
   with tempfile.TemporaryDirectory() as tmp:
-    out = (of_the_code if code_run else of_ours)(args, tmp)
+    out = (of_the_code if is_code_run(args.run) else of_ours)(args, tmp)
   if out is None:
     return 1
   print(json.dumps(out["difference"]), flush=True)

@@ -446,7 +446,8 @@ def test_the_codes_evaluation_runs_our_actors(tmp_path):
 @needs_reference
 def test_our_evaluation_runs_the_codes_actors(tmp_path):
   """``reference.cross_eval`` on a run folder of the code's: its final target actors act in
-  our evaluation as in the code's (the probe check) and both evaluate them."""
+  our evaluation as in the code's (the probe check) and both evaluate them; ``render`` draws
+  them in our env."""
   run = tmp_path / "run"
   assert _run(run).returncode == 0
   out = tmp_path / "cross.json"
@@ -462,3 +463,8 @@ def test_our_evaluation_runs_the_codes_actors(tmp_path):
     assert row[f"{side}_success"] == 0.0 and len(row[f"{side}_distances"]) == 2
     assert all(13 < d < 21 for d in row[f"{side}_distances"])  # 50 steps from the start
   assert got["difference"]["episodes"] == [2, 2]
+  from experiments import render
+  assert render.main([str(run), "--max-frames", "5"]) == 0
+  assert (run / "the-code_seed0.gif").stat().st_size > 1000
+  with pytest.raises(SystemExit):
+    render.main([str(run), "--seed", "best"])
