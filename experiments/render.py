@@ -36,6 +36,7 @@ import numpy as np
 from experiments import curves
 from nonmono_jax.core import evaluate
 from nonmono_jax.host import checkpoints, programs as programs_lib
+from reference import cross_eval
 
 
 def _saved_policy(run_dir: str, method: str | None, seed: int):
@@ -60,7 +61,6 @@ def _code_policy(run_dir: str):
   engine settings (``reference.cross_eval``)."""
   import tempfile
 
-  from reference import cross_eval
   with tempfile.TemporaryDirectory() as tmp:
     path = os.path.join(tmp, "actors.npz")
     if cross_eval.code_actors_npz(run_dir, path):
@@ -78,7 +78,6 @@ def _code_policy(run_dir: str):
 def rollout(run_dir: str, method: str | None = None, seed: int = 0, key: int = 0) -> dict:
   """One evaluation episode of a saved run: positions, goals, blocks, success per step. A
   run folder of the paper's code (``reference.run``) rolls its actors in our env."""
-  from reference import cross_eval
   if cross_eval.is_code_run(run_dir):
     config, agent, low_params, middle_params, info = _code_policy(run_dir)
   else:
@@ -211,7 +210,6 @@ def key(ax) -> list[str]:
 
 
 def main(argv=None) -> int:
-  from reference import cross_eval
   checkpoints.quiet_storage_leftovers()
   p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
   p.add_argument("dir", help="a run folder of ours, or of the paper's code (reference.run)")

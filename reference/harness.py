@@ -526,10 +526,10 @@ class Harness:
 
 class _XmlFiles:
   """The code's ``maze_env`` writes each env's model to ``tempfile.mkstemp(suffix='.xml')``
-  and keeps neither the open file descriptor nor the file (over 100 files in the temp folder
-  a run, and a descriptor each, on an evaluation's every env). Stands in for its ``tempfile``:
-  the descriptor is closed at once (the code writes through the path) and the file removed
-  once the env has loaded it."""
+  and neither closes the descriptor nor removes the file (an evaluation makes a new env:
+  over 100 files in the temp folder a run, and as many descriptors). Stands in for its
+  ``tempfile``: the descriptor is closed at once (the code writes through the path) and the
+  file removed once the env has loaded it."""
 
   def __init__(self):
     self.paths = []

@@ -251,6 +251,23 @@ def test_the_codes_model_files_are_closed_and_removed(tmp_path):
   assert files.gettempdir() == tempfile.gettempdir()
 
 
+def test_cross_eval_summaries():
+  """Code - ours over seeds (every resample of 3 seeds: the interval runs from the lowest
+  seed's difference to the highest), and ours - code over the pooled episodes of the draws."""
+  from reference import cross_eval
+  rows = [{"seed": k, "draw": d, "code_distance": 10.0 + k + d, "eval_distance": 10.0}
+          for k in range(3) for d in range(2)]
+  diff = cross_eval.summary({"t": 1}, rows)["difference"]
+  assert (diff["seeds"], diff["mean"], diff["ci95"]) == (3, 1.5, [0.5, 2.5])
+  meta = {"t": 1, "results": [{"draw": d, "code_success": 0.0, "code_distances": [9.0, 11.0]}
+                              for d in range(2)]}
+  out = cross_eval.mirror_summary(meta, [(0.0, [8.0, 8.0]), (0.02, [8.0, 10.0])])
+  assert [r["our_distance"] for r in out["results"]] == [8.0, 9.0] and out["t"] == 1
+  assert out["difference"]["episodes"] == [4, 4] and out["difference"]["mean"] == -1.5
+  lower, upper = out["difference"]["ci95"]
+  assert -3.5 <= lower < -1.5 < upper <= 0.5
+
+
 # ----- with the reference venv and the fetched code ---------------------------------------------
 
 VENV = pathlib.Path(os.environ.get("REFERENCE_VENV") or reference.default_venv())
