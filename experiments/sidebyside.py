@@ -111,13 +111,14 @@ def reference_seed(folder: str) -> str:
     raise ValueError(f"{folder}/config.json: the run's seed cannot be read ({e})") from None
 
 
-def reference_rows(folder: str) -> list[dict]:
+def reference_rows(folder: str, seed: str | None = None) -> list[dict]:
   """One harness run folder as rows of the long form of ``metrics.csv`` on the paper's axis:
   an evaluation row per evaluation (``eval_success`` the code's 'success rate',
   ``eval_success_ppo`` its 'higher success rate', ``eval_distance``) and a row per window of
   the Low's reward (``low_reward``) and the mode counts since warm-up (``cum_decisions_*``).
-  ``env_step`` is the code's logged step, t - start_timestep."""
-  base = {"task": TASK, "method": REFERENCE, "seed": reference_seed(folder)}
+  ``env_step`` is the code's logged step, t - start_timestep. ``seed``: the folder's, if
+  read already (``reference_seed``)."""
+  base = {"task": TASK, "method": REFERENCE, "seed": seed or reference_seed(folder)}
   rows = []
   for r in _csv(os.path.join(folder, "evaluations.csv"),
                 ("step", "success_rate", "final_distance")):
@@ -145,7 +146,7 @@ def load(dirs) -> list[dict]:
         raise ValueError(f"{seen[seed]} and {folder} are both the reference's seed {seed}: "
                          f"keep one (a copy elsewhere than under the study's folder)")
       seen[seed] = folder
-      rows += reference_rows(folder)
+      rows += reference_rows(folder, seed)
     ours = [root for root, _, files in os.walk(d) if "metrics.csv" in files]
     if ours:
       rows += curves.load(ours, axis="paper")
