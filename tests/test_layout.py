@@ -73,5 +73,5 @@ def test_no_undefined_or_unused_names_or_long_lines():
 
 def test_the_longest_test_files_named_first_exist():
   """``conftest.LONGEST_FIRST`` names files (a renamed one would silently go back in line)."""
-  from tests import conftest
+  import conftest  # the module pytest loaded (tests/ is on sys.path, as for tests_support)
   assert all(os.path.exists(os.path.join(ROOT, "tests", f)) for f in conftest.LONGEST_FIRST)
