@@ -461,7 +461,7 @@ def test_cross_eval_exports_the_actors_each_seed_was_evaluated_with(reference):
                                  out[f"seed{k}/probe_{name}"], rtol=0, atol=1e-5 * scale.max())
   rows = {int(r["seed"]): r for r in _rows(reference)
           if r["method"] == "ours" and int(r["env_step"]) == meta["env_step"]}
-  assert {int(k): v["eval_distance"] for k, v in meta["ours"].items()} == {
+  assert len(rows) == 2 and {int(k): v["eval_distance"] for k, v in meta["ours"].items()} == {
       k: float(r["eval_distance"]) for k, r in rows.items()}
   # the target actors (eval_target_networks), which after training are not the online ones
   *_, states = programs.restored(reference, "ours", 600)
