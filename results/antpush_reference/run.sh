@@ -1,0 +1,150 @@
+#!/usr/bin/env bash
+# The side-by-side study's runs (README.md, "The runs"), from the pinned commit in a git worktree,
+# at the lowest priority, each resumed from its newest checkpoint when it has one.
+#
+#   bash results/antpush_reference/run.sh setup           # the worktree and the reference venv (once a machine)
+#   bash results/antpush_reference/run.sh queue           # everything left, in the protocol's order, in the background
+#   bash results/antpush_reference/run.sh ours | hiro     # one of ours (foreground)
+#   bash results/antpush_reference/run.sh ref S           # the code's seed S (foreground)
+#   bash results/antpush_reference/run.sh status          # what runs, how far each run is
+#   bash results/antpush_reference/run.sh sync "label"    # the runs' rows into this checkout, one commit
+#
+# The queue has two lanes, one a core: ours then HIRO; the code's seeds 0, 1, 2 one after the
+# other (a finished run is skipped). Run from the project's venv (python on PATH). Settings:
+# STUDY_TREE (the worktree, default ../study2 beside this checkout), REFERENCE_HOME (the
+# reference venv and code, as reference.setup takes it).
+set -euo pipefail
+
+PIN=d845c88                      # the commit of all three runs (README.md, "Changes")
+MAIN=$(cd "$(dirname "$0")/../.." && pwd)
+TREE=${STUDY_TREE:-$(dirname "$MAIN")/study2}
+FOLDER=results/antpush_reference
+LOGS="$TREE/$FOLDER/logs"
+MIRROR=${STUDY_MIRROR:-}         # a local git directory of the upstream code (reference.setup --from-mirror)
+
+ours_command() {  # $1: ours or hiro
+  echo python -m experiments.antpush --method "$1" --preset paper --physics c \
+    --contacts mujoco200 --steps 1100000 --seeds 6 --seed 0 --checkpoint-every 10000 \
+    --eval_extra held --no-progress --out "$FOLDER/$1"
+}
+
+ref_command() {  # $1: the seed
+  echo python -m reference.run --seed "$1" --steps 1110000 --eval batched-td3 \
+    --physics mujoco200 --out "$FOLDER/reference/seed$1"
+}
+
+lowest_priority() {  # this shell's autogroup at nice 19 (what `nice` alone leaves at 0)
+  echo 19 > /proc/self/autogroup 2>/dev/null || true
+}
+
+has_row() {  # $1: a csv, $2: a column, $3: a value
+  [ -f "$1" ] && awk -F, -v c="$2" -v v="$3" 'NR > 1 && $c == v { found = 1 } END { exit !found }' "$1"
+}
+# Done: the run's last evaluation is in its rows, in the worktree or committed here (a run whose
+# rows are all committed is not run again on a new machine, whose worktree starts empty).
+ours_done() { has_row "$TREE/$FOLDER/$1/metrics.csv" 4 1100000 || has_row "$MAIN/$FOLDER/$1/metrics.csv" 4 1100000; }
+ref_done() {
+  local rows="$FOLDER/reference/seed$1/evaluations.csv"
+  [ -f "$TREE/$FOLDER/reference/seed$1/done.json" ] || has_row "$MAIN/$rows" 1 1100000
+}
+
+run_ours() {  # start, or resume the run's folder
+  local method=$1 out="$TREE/$FOLDER/$1"
+  if ours_done "$method"; then echo "$method: done"; return 0; fi
+  mkdir -p "$LOGS"; lowest_priority; cd "$TREE"
+  if [ -f "$out/config.json" ]; then
+    PYTHONPATH="$TREE" nice -n 19 python -m experiments.antpush --resume "$FOLDER/$method" \
+      --no-progress >> "$LOGS/$method.log" 2>&1
+  else
+    PYTHONPATH="$TREE" nice -n 19 $(ours_command "$method") >> "$LOGS/$method.log" 2>&1
+  fi
+}
+
+run_ref() {  # the same command starts and resumes
+  local seed=$1
+  if ref_done "$seed"; then echo "the code's seed $seed: done"; return 0; fi
+  mkdir -p "$LOGS"; lowest_priority; cd "$TREE"
+  PYTHONPATH="$TREE" nice -n 19 $(ref_command "$seed") >> "$LOGS/ref$seed.log" 2>&1
+}
+
+setup() {
+  if [ ! -d "$TREE" ]; then git -C "$MAIN" worktree add --detach "$TREE" "$PIN"; fi
+  [ "$(git -C "$TREE" rev-parse --short=7 HEAD)" = "$PIN" ] || { echo "$TREE is not at $PIN" >&2; exit 1; }
+  cd "$TREE"
+  if [ -n "$MIRROR" ]; then python -m reference.setup --from-mirror "$MIRROR"; else python -m reference.setup; fi
+}
+
+queue() {  # two lanes, each in its own session (its own autogroup), detached from this shell
+  setsid nohup bash "$0" lane-ours > /dev/null 2>&1 < /dev/null &
+  setsid nohup bash "$0" lane-ref > /dev/null 2>&1 < /dev/null &
+  echo "queued; logs in $LOGS"
+}
+
+newest() {  # $1: a csv, $2: the step's column. The largest step in its rows, or "-"
+  [ -f "$1" ] && awk -F, -v c="$2" 'NR > 1 && $c + 0 > m { m = $c + 0 } END { print (m ? m : "-") }' "$1" || echo -
+}
+
+status() {
+  pgrep -af "python -m (experiments.antpush|reference.harness)" || echo "no run is running"
+  local m s
+  for m in ours hiro; do
+    echo "$m: rows to env step $(newest "$TREE/$FOLDER/$m/metrics.csv" 4) here," \
+      "$(newest "$MAIN/$FOLDER/$m/metrics.csv" 4) committed$(ours_done "$m" && echo '; done')"
+  done
+  for s in 0 1 2; do
+    echo "the code's seed $s: rows to t = $(newest "$TREE/$FOLDER/reference/seed$s/evaluations.csv" 1)" \
+      "here, $(newest "$MAIN/$FOLDER/reference/seed$s/evaluations.csv" 1) committed$(ref_done "$s" && echo '; done')"
+  done
+}
+
+sync_file() {  # $1: a path under $FOLDER. Copies rows when they extend the committed ones; a
+  # restarted run (on a new machine) must give the committed rows again, line for line. A
+  # run's config.json and provenance.json are copied once (a restart's provenance stays with it).
+  local new="$TREE/$1" old="$MAIN/$1" n
+  [ -f "$new" ] || return 0
+  if [ -f "$old" ] && [ "${1##*.}" = json ]; then
+    cmp -s "$new" "$old" || echo "$1: the run's differs from the committed one; left as committed"
+    return 0
+  elif [ -f "$old" ]; then
+    n=$(wc -l < "$new")
+    if ! head -n "$n" "$old" | cmp -s - <(head -n "$(wc -l < "$old")" "$new"); then
+      echo "$1: the run's rows differ from the committed ones (first difference below); not copied" >&2
+      diff <(head -n "$n" "$old") <(head -n "$(wc -l < "$old")" "$new") | head -n 4 >&2
+      return 1
+    fi
+    [ "$n" -gt "$(wc -l < "$old")" ] || return 0
+  else
+    mkdir -p "$(dirname "$old")"
+  fi
+  cp "$new" "$old"; git -C "$MAIN" add "$1"
+}
+
+sync_rows() {  # $1: the commit's label
+  local status=0 f
+  for f in ours/metrics.csv ours/config.json hiro/metrics.csv hiro/config.json; do
+    sync_file "$FOLDER/$f" || status=1
+  done
+  for s in 0 1 2; do
+    for f in evaluations.csv windows.csv config.json provenance.json; do
+      sync_file "$FOLDER/reference/seed$s/$f" || status=1
+    done
+  done
+  if ! git -C "$MAIN" diff --cached --quiet; then
+    git -C "$MAIN" commit -q -m "$FOLDER: rows ($1)" && git -C "$MAIN" log --oneline -1
+  else
+    echo "no new rows"
+  fi
+  return $status
+}
+
+case "${1:-}" in
+  setup) setup ;;
+  queue) queue ;;
+  status) status ;;
+  ours|hiro) run_ours "$1" ;;
+  ref) run_ref "${2:?the seed}" ;;
+  lane-ours) run_ours ours && ours_done ours && run_ours hiro ;;
+  lane-ref) for s in 0 1 2; do run_ref "$s" && ref_done "$s" || exit 1; done ;;
+  sync) sync_rows "${2:?a label for the commit}" ;;
+  *) sed -n '2,15p' "$0"; exit 2 ;;
+esac
