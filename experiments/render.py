@@ -46,7 +46,7 @@ def _saved_policy(run_dir: str, method: str | None, seed: int):
   plan, method, _ = programs_lib.saved_method(run_dir, method)
   if not 0 <= seed < plan.spec.seeds:
     raise ValueError(f"seed must be in [0, {plan.spec.seeds}), got {seed}")
-  plan, method, step, trainer, states = programs_lib.restored(run_dir, method)
+  plan, method, step, trainer, states = programs_lib.restored(run_dir, method, plan=plan)
   config = plan.configs[method]
   pick = lambda tree: evaluate.acting_params(jax.tree.map(lambda x: x[seed], tree),
                                              config.eval_target_networks)

@@ -135,13 +135,14 @@ def _own_rows(run_dir, method, env_step):
   return found
 
 
-def export(run_dir, method=None, step=None, seeds=None) -> dict:
+def export(run_dir, method=None, step=None, seeds=None, plan=None) -> dict:
   """Our actors at a checkpoint, for each seed, with probe inputs and our actions on them,
-  and the run's own evaluation at that step: arrays for ``np.savez``."""
+  and the run's own evaluation at that step: arrays for ``np.savez`` (``plan``: the run's,
+  when the caller has read it, with ``method``)."""
   import jax
   from nonmono_jax.core import evaluate
   from nonmono_jax.host import programs
-  plan, method, step, trainer, states = programs.restored(run_dir, method, step)
+  plan, method, step, trainer, states = programs.restored(run_dir, method, step, plan)
   config, agent = plan.configs[method], trainer.agent
   seeds = list(range(plan.spec.seeds)) if seeds is None else list(seeds)
   obs, goal = _probes(agent.env.observation_size)
@@ -454,7 +455,7 @@ def of_ours(args, tmp) -> dict | None:
   plan, method, _ = programs.saved_method(args.run, args.method)
   check_config(plan.configs[method])
   weights = os.path.join(tmp, "actors.npz")
-  np.savez(weights, **export(args.run, method, args.step, args.seeds))
+  np.savez(weights, **export(args.run, method, args.step, args.seeds, plan))
   if _reference_venv(args.venv, ["--weights", weights], **_draws(args)):
     return None
   results = json.loads(pathlib.Path(weights).with_suffix(".json").read_text())

@@ -58,12 +58,17 @@ def saved_method(run_dir: str, method: str | None = None) -> tuple[Plan, str, in
   return plan, method, step
 
 
-def restored(run_dir: str, method: str | None = None, step: int | None = None):
+def restored(run_dir: str, method: str | None = None, step: int | None = None,
+             plan: Plan | None = None):
   """(plan, method, step, trainer, states) of a saved run: ``method``'s train state (every
   seed on the leading axis) at the checkpoint of ``step``, by default the newest that
   restores; ``trainer`` is its program (``Programs(plan).trainer(method)``: its agent, env and
-  lanes), built but not compiled."""
-  plan, method, _ = saved_method(run_dir, method)
+  lanes), built but not compiled. ``plan``: the run's, when the caller has it from
+  ``saved_method`` (with ``method`` from there too), so the folder is read once."""
+  if plan is None:
+    plan, method, _ = saved_method(run_dir, method)
+  elif method not in plan.configs:
+    raise ValueError(f"method {method!r} is not in this run ({', '.join(plan.configs)})")
   trainer = Programs(plan).trainer(method)
   like = jax.eval_shape(trainer.init, jax.random.PRNGKey(0))
   ckpts = checkpoints.Checkpoints(os.path.join(run_dir, "checkpoints", method))
