@@ -240,3 +240,68 @@ def test_the_success_panel_is_the_mean_of_the_seeds(tmp_path):
   i = list(steps).index(700_000)  # the ramps' 2/3: 0.533, 0.333, 0.133
   assert seeds == 3 and point[i] == pytest.approx((0.533 + 0.333 + 0.133) / 3)
   assert lower[i] <= point[i] <= upper[i] and len(steps) == 100
+
+
+# -- the study's launcher (results/antpush_reference/run.sh) -------------------------------
+
+LAUNCHER = os.path.join(os.path.dirname(__file__), "..", "results", "antpush_reference",
+                        "run.sh")
+
+
+def _launcher(tmp_path):
+  """A checkout holding the launcher and committed rows of ours (to env step 20K, a row per
+  seed), and a worktree beside it, as the launcher finds them."""
+  import shutil
+  import subprocess
+  main, tree = tmp_path / "main", tmp_path / "study2"
+  folder = main / "results" / "antpush_reference"
+  (folder / "ours").mkdir(parents=True)
+  shutil.copy(LAUNCHER, folder / "run.sh")
+  rows = ["task,method,seed,env_step,eval_success"] + [
+      f"AntPush,ours,{k},{x},0.0" for x in (10_000, 20_000) for k in (0, 1)]
+  (folder / "ours" / "metrics.csv").write_text("\n".join(rows) + "\n")
+  git = lambda *a: subprocess.run(["git", "-C", str(main), *a], check=True, capture_output=True)
+  git("init", "-q")
+  git("-c", "user.name=t", "-c", "user.email=t@t", "add", ".")
+  git("-c", "user.name=t", "-c", "user.email=t@t", "commit", "-q", "-m", "rows")
+  (tree / "results" / "antpush_reference" / "ours").mkdir(parents=True)
+
+  def run(*args):
+    env = {**os.environ, "STUDY_TREE": str(tree), "GIT_AUTHOR_NAME": "t",
+           "GIT_AUTHOR_EMAIL": "t@t", "GIT_COMMITTER_NAME": "t", "GIT_COMMITTER_EMAIL": "t@t"}
+    return subprocess.run(["bash", str(folder / "run.sh"), *args], env=env, text=True,
+                          capture_output=True)
+  running = tree / "results" / "antpush_reference" / "ours" / "metrics.csv"
+  return rows, folder / "ours" / "metrics.csv", running, run
+
+
+def test_the_launcher_commits_rows_that_extend_the_committed_ones_and_refuses_others(tmp_path):
+  rows, committed, running, run = _launcher(tmp_path)
+  # A run's rows that repeat the committed ones and go on: copied and committed.
+  longer = rows + ["AntPush,ours,0,30000,0.0", "AntPush,ours,1,30000,0.0"]
+  running.write_text("\n".join(longer) + "\n")
+  out = run("sync", "to 30K")
+  assert out.returncode == 0, out.stderr
+  assert committed.read_text() == running.read_text()
+  assert "to 30K" in out.stdout
+  assert "rows to env step 30000 here, 30000 committed" in run("status").stdout
+  # Another run of the same seeds (another machine): its rows differ, nothing is copied.
+  other = longer[:3] + ["AntPush,ours,0,20000,0.5"] + longer[4:] + ["AntPush,ours,0,40000,0.0"]
+  running.write_text("\n".join(other) + "\n")
+  out = run("sync", "another run")
+  assert out.returncode == 1 and "differ from the committed ones" in out.stderr
+  assert committed.read_text() == "\n".join(longer) + "\n"
+  # Fewer rows than committed, the same ones: nothing to do.
+  running.write_text("\n".join(rows) + "\n")
+  out = run("sync", "behind")
+  assert out.returncode == 0 and "no new rows" in out.stdout
+
+
+def test_the_launcher_takes_a_run_whose_last_rows_are_committed_as_done(tmp_path):
+  rows, committed, _, run = _launcher(tmp_path)
+  ours_line = lambda: next(line for line in run("status").stdout.splitlines()
+                           if line.startswith("ours:"))
+  assert ours_line() == "ours: rows to env step - here, 20000 committed"
+  committed.write_text("\n".join(rows + ["AntPush,ours,0,1100000,0.1"]) + "\n")
+  assert ours_line() == "ours: rows to env step - here, 1100000 committed; done"
+  assert run("ours").stdout.strip() == "ours: done"
