@@ -10,12 +10,13 @@
 #   bash results/antpush_reference/run.sh sync "label"    # the runs' rows into this checkout, one commit
 #
 # The queue has two lanes, one a core: ours then HIRO; the code's seeds 0, 1, 2 one after the
-# other (a finished run is skipped). Run from the project's venv (python on PATH). Settings:
+# other (a finished run is skipped). Run this copy (main's), from the project's venv (python on
+# PATH). Settings:
 # STUDY_TREE (the worktree, default ../study2 beside this checkout), REFERENCE_HOME (the
 # reference venv and code, as reference.setup takes it).
 set -euo pipefail
 
-PIN=d845c88                      # the commit of all three runs (README.md, "Changes")
+PIN=9d0c539                      # the runs' commit from 2026-12-06 evening (README.md, "Changes")
 MAIN=$(cd "$(dirname "$0")/../.." && pwd)
 TREE=${STUDY_TREE:-$(dirname "$MAIN")/study2}
 FOLDER=results/antpush_reference
