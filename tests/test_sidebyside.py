@@ -279,20 +279,25 @@ def test_the_launcher_commits_rows_that_extend_the_committed_ones_and_refuses_ot
   rows, committed, running, run = _launcher(tmp_path)
   # A run's rows that repeat the committed ones and go on: copied and committed.
   longer = rows + ["AntPush,ours,0,30000,0.0", "AntPush,ours,1,30000,0.0"]
-  running.write_text("\n".join(longer) + "\n")
+  running.write_text("\n".join(longer) + "\nAntPush,ours,0,40")  # a line being written
+  (running.parent / "config.json").write_text('{"run": 1}')
   out = run("sync", "to 30K")
   assert out.returncode == 0, out.stderr
-  assert committed.read_text() == running.read_text()
+  assert committed.read_text() == "\n".join(longer) + "\n"
+  assert (committed.parent / "config.json").read_text() == '{"run": 1}'
   assert "to 30K" in out.stdout
   assert "rows to env step 30000 here, 30000 committed" in run("status").stdout
   # Another run of the same seeds (another machine): its rows differ, nothing is copied.
   other = longer[:3] + ["AntPush,ours,0,20000,0.5"] + longer[4:] + ["AntPush,ours,0,40000,0.0"]
   running.write_text("\n".join(other) + "\n")
+  (running.parent / "config.json").write_text('{"run": 2}')
   out = run("sync", "another run")
   assert out.returncode == 1 and "differ from the committed ones" in out.stderr
   assert committed.read_text() == "\n".join(longer) + "\n"
+  assert (committed.parent / "config.json").read_text() == '{"run": 1}'
   # Fewer rows than committed, the same ones: nothing to do.
   running.write_text("\n".join(rows) + "\n")
+  (running.parent / "config.json").write_text('{"run": 1}')
   out = run("sync", "behind")
   assert out.returncode == 0 and "no new rows" in out.stdout
 

@@ -98,37 +98,41 @@ status() {
   done
 }
 
-sync_file() {  # $1: a path under $FOLDER. Copies rows when they extend the committed ones; a
-  # restarted run (on a new machine) must give the committed rows again, line for line. A
-  # run's config.json and provenance.json are copied once (a restart's provenance stays with it).
+sync_rows_file() {  # $1: a csv under $FOLDER. Copied when its rows extend the committed ones;
+  # another run of the same seeds (a restart on a new machine) differs, and is refused.
   local new="$TREE/$1" old="$MAIN/$1" n
   [ -f "$new" ] || return 0
-  if [ -f "$old" ] && [ "${1##*.}" = json ]; then
-    cmp -s "$new" "$old" || echo "$1: the run's differs from the committed one; left as committed"
-    return 0
-  elif [ -f "$old" ]; then
-    n=$(wc -l < "$new")
+  n=$(wc -l < "$new")
+  if [ -f "$old" ]; then
     if ! head -n "$n" "$old" | cmp -s - <(head -n "$(wc -l < "$old")" "$new"); then
       echo "$1: the run's rows differ from the committed ones (first difference below); not copied" >&2
       diff <(head -n "$n" "$old") <(head -n "$(wc -l < "$old")" "$new") | head -n 4 >&2
       return 1
     fi
     [ "$n" -gt "$(wc -l < "$old")" ] || return 0
-  else
-    mkdir -p "$(dirname "$old")"
   fi
-  cp "$new" "$old"; git -C "$MAIN" add "$1"
+  mkdir -p "$(dirname "$old")"
+  head -n "$n" "$new" > "$old"; git -C "$MAIN" add "$1"   # whole lines (one may be being written)
+}
+
+sync_run() {  # $1: a run's folder under $FOLDER, then its row files, then "--", its other files
+  # (config.json, provenance.json: copied as they are when every row file was taken)
+  local dir=$1 f; shift
+  while [ "$1" != -- ]; do sync_rows_file "$FOLDER/$dir/$1" || return 1; shift; done
+  shift
+  for f in "$@"; do
+    [ -f "$TREE/$FOLDER/$dir/$f" ] || continue
+    cmp -s "$TREE/$FOLDER/$dir/$f" "$MAIN/$FOLDER/$dir/$f" 2>/dev/null && continue
+    cp "$TREE/$FOLDER/$dir/$f" "$MAIN/$FOLDER/$dir/$f"; git -C "$MAIN" add "$FOLDER/$dir/$f"
+  done
 }
 
 sync_rows() {  # $1: the commit's label
-  local status=0 f
-  for f in ours/metrics.csv ours/config.json hiro/metrics.csv hiro/config.json; do
-    sync_file "$FOLDER/$f" || status=1
-  done
+  local status=0 m s
+  for m in ours hiro; do sync_run "$m" metrics.csv -- config.json || status=1; done
   for s in 0 1 2; do
-    for f in evaluations.csv windows.csv config.json provenance.json; do
-      sync_file "$FOLDER/reference/seed$s/$f" || status=1
-    done
+    sync_run "reference/seed$s" evaluations.csv windows.csv -- config.json provenance.json \
+      || status=1
   done
   if ! git -C "$MAIN" diff --cached --quiet; then
     git -C "$MAIN" commit -q -m "$FOLDER: rows ($1)" && git -C "$MAIN" log --oneline -1
