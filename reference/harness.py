@@ -518,9 +518,13 @@ class Harness:
               "Architecture", "Model name", "CPU family", "Model", "CPU(s)", "Flags")},
           "harness": _harness_commit(),
           "host": platform.node(), "config": dataclasses.asdict(self.config), "sessions": []}
+    # Each session's own commit and machine: a run may resume at another commit or on
+    # another machine (the top-level entries are its first session's).
     data["sessions"].append({"started": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
                              "command": self.config.command, "threads": self.config.threads,
-                             "resume_t": None if self.resume is None else self.resume["t"]})
+                             "resume_t": None if self.resume is None else self.resume["t"],
+                             "harness": _harness_commit(), "host": platform.node(),
+                             "cpu": _cpu().get("Model name")})
     path.write_text(json.dumps(data, indent=1) + "\n")
 
 

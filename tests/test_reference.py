@@ -318,6 +318,9 @@ def test_a_run_is_the_same_twice_and_stopped_and_resumed(tmp_path):
   check = _same_weights(straight / "final.pt", resumed / "final.pt")
   assert check.returncode == 0, check.stderr
   assert _run(resumed).stdout.strip().endswith("finished already")
+  sessions = json.loads((resumed / "provenance.json").read_text())["sessions"]
+  assert [s["resume_t"] for s in sessions] == [None, 1000]  # the calls that trained
+  assert all(s["harness"]["commit"] and s["host"] and "cpu" in s for s in sessions)
 
 
 @pytest.mark.slow
