@@ -5,7 +5,8 @@ device count) from step 0 in a temporary folder, up to ``--steps`` env steps (de
 whole run), and compares every row it writes with the folder's ``metrics.csv``, field by
 field as text. The rows are the same only on the machine type the run was made on (the host
 ``config.json`` records: XLA:CPU compiles for the CPU it runs on, ``benchmarks/cpu_profile.md``),
-so the first line says whether this host is that type.
+so the first line says whether this host is that type (and a second, whether the run was
+resumed at another commit or on another machine type: its ``sessions.jsonl``).
 
     python -m experiments.reproduce results/pointfall/hiro --steps 20000      # 100 rows
     python -m experiments.reproduce results/pointmaze/ours --steps 10000 --method ours
@@ -95,6 +96,17 @@ def committed_rows(folder: str) -> dict:
   return out
 
 
+def moved_line(out: str) -> str | None:
+  """What the run's sessions say of a resume at another commit or on another machine type
+  (``sessions.jsonl``), or None: a re-run here from step 0 repeats its rows up to there at
+  most."""
+  moves = provenance.moves(folder.read_sessions(out))
+  if moves:
+    return (f"{'; '.join(moves)}: its rows from then on are that session's, and a re-run from "
+            f"step 0 can repeat them only up to there")
+  return None
+
+
 def host_line(payload: dict) -> str:
   saved = payload.get("host")
   if not isinstance(saved, dict):
@@ -163,6 +175,8 @@ def main(argv=None) -> int:
     if payload.get("platform") == "cpu" and isinstance(payload.get("device_count"), int):
       run.use_cpu_devices(payload["device_count"])  # the device count the run trained on
     print(f"{args.folder}: {host_line(payload)}", flush=True)
+    if moved_line(args.folder):
+      print(f"{args.folder}: {moved_line(args.folder)}", flush=True)
     comparisons = reproduce(args.folder, args.steps, args.method)
   except (ValueError, rows_lib.MetricsError) as e:
     print(f"{p.prog}: error: {e}", file=sys.stderr)

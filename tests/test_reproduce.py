@@ -1,6 +1,7 @@
 """``experiments.reproduce``: a run folder re-run here gives its rows, and a changed row is
 named."""
 
+import json
 import os
 import shutil
 import subprocess
@@ -60,3 +61,25 @@ def test_a_run_from_before_host_recording_says_so():
   moved = reproduce.host_line({"host": {"cpu": "another CPU", "cpu_family": "1",
                                         "cpu_model": "2", "isa": [], "xla_flags": ""}})
   assert moved.startswith("made on another CPU (family 1, model 2); this host differs (cpu ")
+
+
+def test_a_resume_at_another_commit_or_machine_type_is_said(folder, tmp_path):
+  """The run's sessions (``sessions.jsonl``): its start here; a resume elsewhere is named,
+  with where a re-run from step 0 stops repeating its rows."""
+  from nonmono_jax.host import folder as folder_lib, provenance
+  first, = folder_lib.read_sessions(folder)
+  assert not first["resumed"] and first["host"] == provenance.host()
+  assert reproduce.moved_line(folder) is None
+  moved = str(tmp_path / "moved")
+  shutil.copytree(folder, moved)
+  here_again = {**first, "resumed": True, "started": "2026-12-07T10:00:00+0000"}
+  elsewhere = {**here_again, "started": "2026-12-08T10:00:00+0000",
+               "host": {**first["host"], "cpu": "another CPU", "cpu_model": "1"},
+               "code": {"commit": "abcdef0123456789", "dirty": False}}
+  with open(os.path.join(moved, "sessions.jsonl"), "a") as f:
+    f.write(json.dumps(here_again) + "\n" + json.dumps(elsewhere) + "\n" + '{"started": "2026')
+  line = reproduce.moved_line(moved)
+  assert line.startswith("resumed at commit abcdef0 and on another CPU (family "
+                         f"{first['host']['cpu_family']}, model 1) on 2026-12-08T10:00:00+0000: ")
+  assert "only up to there" in line
+

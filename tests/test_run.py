@@ -214,6 +214,9 @@ def test_an_old_run_folder_resumes_plots_and_renders_with_a_warning(old_run, pre
   assert cli.main("PointMaze", ["--resume", out, "--no-progress"]) == 0
   got = capsys.readouterr()
   assert "ours: resumed from step 400" in got.out
+  sessions = folder.read_sessions(out)  # the run's start, then this resume, each with its host
+  assert [s["resumed"] for s in sessions] == [False, True]
+  assert sessions[1]["host"] == provenance.host() and "commit" in sessions[1]["code"]
   assert "warning:" in got.err and "top.s_o_start 0.9 (today 0.8)" in got.err
   rows = rows_lib.MetricsFile(os.path.join(out, "metrics.csv")).read()
   assert [int(r["env_step"]) for r in rows] == [200, 200, 400, 400, 600, 600, 800, 800]
@@ -245,6 +248,7 @@ def test_a_run_folder_of_2026_12_02_loads_resumes_plots_and_renders(tmp_path, ca
   assert run.load_run(out).configs["ours"].top.starting_steps == 100
   assert cli.main("PointMaze", ["--resume", out, "--no-progress"]) == 0
   assert "resumed from step 600" in capsys.readouterr().out
+  assert [s["resumed"] for s in folder.read_sessions(out)] == [True]  # none recorded before
   rows = rows_lib.MetricsFile(os.path.join(out, "metrics.csv")).read()
   keys = {(r["method"], r["seed"], r["env_step"]): r for r in rows}
   assert len(rows) == len(keys) == len(committed) == 2 * 2 * 4  # methods x seeds x chunks

@@ -4,6 +4,7 @@
     out/metrics.csv                 the rows (``rows.py``)
     out/checkpoints/<method>/<step> orbax checkpoints of the train state (``checkpoints.py``)
     out/timing.json                 the longest first (compiling) chunk, for --time-limit
+    out/sessions.jsonl              each process that trained it: when, its commit and machine
 
 ``to_json(plan)`` is ``config.json``: the plan (task, methods, every config in full, the run's
 size, overrides, the ant's physics) and where it was made (``provenance.py``).
@@ -26,6 +27,8 @@ import envs
 from envs import contacts as contacts_lib
 from envs import physics as physics_lib
 from nonmono_jax.host import methods, provenance
+
+SESSIONS = "sessions.jsonl"
 
 
 def to_jsonable(obj: Any) -> Any:
@@ -52,6 +55,29 @@ def write_text(path: str, text: str) -> None:
 def write_json(path: str, payload: dict) -> None:
   """Atomically: a temporary file renamed over ``path``."""
   write_text(path, json.dumps(payload, indent=1, sort_keys=True))
+
+
+def add_session(out: str, resumed: bool) -> None:
+  """Appends this process's line to ``OUT/sessions.jsonl`` (``provenance.session``)."""
+  with open(os.path.join(out, SESSIONS), "a") as f:
+    f.write(json.dumps(provenance.session(resumed), sort_keys=True) + "\n")
+
+
+def read_sessions(out: str) -> list:
+  """``OUT/sessions.jsonl``'s lines ([] for a run from before sessions were recorded); a
+  line cut short by a stop is left out."""
+  try:
+    with open(os.path.join(out, SESSIONS)) as f:
+      lines = f.read().splitlines()
+  except FileNotFoundError:
+    return []
+  sessions = []
+  for line in lines:
+    try:
+      sessions.append(json.loads(line))
+    except json.JSONDecodeError:
+      continue
+  return sessions
 
 
 def read_json(path: str) -> dict:

@@ -11,6 +11,7 @@ import os
 import platform
 import subprocess
 import sys
+import time
 from importlib import metadata
 
 import jax
@@ -76,6 +77,31 @@ def code_version() -> dict:
   except (OSError, subprocess.SubprocessError):
     return {}
   return {"commit": head.stdout.strip(), "dirty": dirty}
+
+
+def session(resumed: bool) -> dict:
+  """A line of the run folder's ``sessions.jsonl``: a process that opened the run to train
+  it, with its code and machine. ``config.json`` holds the first's; a run resumed at another
+  commit or on another machine type reproduces bit for bit up to there only."""
+  return {"started": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "resumed": resumed,
+          "code": code_version(), "host": host(), "command": " ".join(sys.argv)}
+
+
+def moves(sessions: list) -> list[str]:
+  """Where each session of a run (``sessions.jsonl``'s lines) ran at another commit or on
+  another machine type than the session before it: one phrase each, in order."""
+  out = []
+  for before, now in zip(sessions, sessions[1:]):
+    changed = []
+    if (before.get("code") or {}).get("commit") != (now.get("code") or {}).get("commit"):
+      changed.append(f"at commit {str((now.get('code') or {}).get('commit'))[:7]}")
+    a, b = before.get("host") or {}, now.get("host") or {}
+    if any(a.get(k) != b.get(k) for k in set(a) | set(b) if k != "cores"):
+      changed.append(f"on {b.get('cpu')} (family {b.get('cpu_family')}, model "
+                     f"{b.get('cpu_model')})")
+    if changed:
+      out.append(f"resumed {' and '.join(changed)} on {now.get('started')}")
+  return out
 
 
 def versions() -> dict:

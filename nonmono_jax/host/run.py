@@ -209,6 +209,7 @@ def _check_folder(plan: Plan, resume: bool) -> None:
       folder.write_json(os.path.join(plan.out, "config.json"), folder.to_json(plan))
     except OSError as e:
       raise BadFolder(f"{plan.out}/config.json: cannot be written ({e.strerror})") from None
+    _add_session(plan.out, resumed=False)
     return
   metrics = os.path.join(plan.out, "metrics.csv")
   ckpts = os.path.join(plan.out, "checkpoints")
@@ -220,6 +221,14 @@ def _check_folder(plan: Plan, resume: bool) -> None:
                     f"would be lost (put it back, or start a new run)")
   if os.path.exists(metrics):
     rows_lib.good_lines(metrics)  # raises MetricsError naming the file
+  _add_session(plan.out, resumed=True)
+
+
+def _add_session(out: str, resumed: bool) -> None:
+  try:
+    folder.add_session(out, resumed)
+  except OSError as e:
+    raise BadFolder(f"{out}/{folder.SESSIONS}: cannot be written ({e.strerror})") from None
 
 
 # --- training ------------------------------------------------------------------------------------
