@@ -281,10 +281,13 @@ def test_the_launcher_commits_rows_that_extend_the_committed_ones_and_refuses_ot
   longer = rows + ["AntPush,ours,0,30000,0.0", "AntPush,ours,1,30000,0.0"]
   running.write_text("\n".join(longer) + "\nAntPush,ours,0,40")  # a line being written
   (running.parent / "config.json").write_text('{"run": 1}')
+  (running.parent.parent / "logs").mkdir()
+  (running.parent.parent / "logs" / "ours.log").write_text("ours step 30000/1100000\n")
   out = run("sync", "to 30K")
   assert out.returncode == 0, out.stderr
   assert committed.read_text() == "\n".join(longer) + "\n"
   assert (committed.parent / "config.json").read_text() == '{"run": 1}'
+  assert (committed.parent / "run.log").read_text() == "ours step 30000/1100000\n"
   assert "to 30K" in out.stdout
   assert "rows to env step 30000 here, 30000 committed" in run("status").stdout
   # Another run of the same seeds (another machine): its rows differ, nothing is copied.

@@ -7,12 +7,11 @@
 #   bash results/antpush_reference/run.sh ours | hiro     # one of ours (foreground)
 #   bash results/antpush_reference/run.sh ref S           # the code's seed S (foreground)
 #   bash results/antpush_reference/run.sh status          # what runs, how far each run is
-#   bash results/antpush_reference/run.sh sync "label"    # the runs' rows into this checkout, one commit
+#   bash results/antpush_reference/run.sh sync "label"    # the runs' rows and logs into this checkout, one commit
 #
 # The queue has two lanes, one a core: ours then HIRO; the code's seeds 0, 1, 2 one after the
 # other (a finished run is skipped). Run this copy (main's), from the project's venv (python on
-# PATH). Settings:
-# STUDY_TREE (the worktree, default ../study2 beside this checkout), REFERENCE_HOME (the
+# PATH). Settings: STUDY_TREE (the worktree, default ../study2 beside this checkout), REFERENCE_HOME (the
 # reference venv and code, as reference.setup takes it).
 set -euo pipefail
 
@@ -127,12 +126,21 @@ sync_run() {  # $1: a run's folder under $FOLDER, then its row files, then "--",
   done
 }
 
+sync_log() {  # $1: a lane's log (logs/<name>.log in the worktree), $2: the run's folder
+  local log="$LOGS/$1.log"
+  [ -f "$log" ] && [ -d "$MAIN/$FOLDER/$2" ] || return 0
+  cmp -s "$log" "$MAIN/$FOLDER/$2/run.log" 2>/dev/null && return 0
+  cp "$log" "$MAIN/$FOLDER/$2/run.log"; git -C "$MAIN" add "$FOLDER/$2/run.log"
+}
+
 sync_rows() {  # $1: the commit's label
   local status=0 m s
-  for m in ours hiro; do sync_run "$m" metrics.csv -- config.json || status=1; done
+  for m in ours hiro; do
+    sync_run "$m" metrics.csv -- config.json && sync_log "$m" "$m" || status=1
+  done
   for s in 0 1 2; do
     sync_run "reference/seed$s" evaluations.csv windows.csv -- config.json provenance.json \
-      || status=1
+      && sync_log "ref$s" "reference/seed$s" || status=1
   done
   if ! git -C "$MAIN" diff --cached --quiet; then
     git -C "$MAIN" commit -q -m "$FOLDER: rows ($1)" && git -C "$MAIN" log --oneline -1
@@ -151,5 +159,5 @@ case "${1:-}" in
   lane-ours) run_ours ours && ours_done ours && run_ours hiro ;;
   lane-ref) for s in 0 1 2; do run_ref "$s" && ref_done "$s" || exit 1; done ;;
   sync) sync_rows "${2:?a label for the commit}" ;;
-  *) sed -n '2,15p' "$0"; exit 2 ;;
+  *) awk 'NR > 1 && /^#/ { print; next } NR > 1 { exit }' "$0"; exit 2 ;;
 esac
