@@ -2,17 +2,19 @@
 # The side-by-side study's runs (README.md, "The runs"), from the pinned commit in a git worktree,
 # at the lowest priority, each resumed from its newest checkpoint when it has one.
 #
-#   bash results/antpush_reference/run.sh setup           # the worktree and the reference venv (once a machine)
-#   bash results/antpush_reference/run.sh queue           # everything left, in the protocol's order, in the background
-#   bash results/antpush_reference/run.sh ours | hiro     # one of ours (foreground)
-#   bash results/antpush_reference/run.sh ref S           # the code's seed S (foreground)
-#   bash results/antpush_reference/run.sh status          # what runs, how far each run is
-#   bash results/antpush_reference/run.sh sync "label"    # the runs' rows and logs into this checkout, one commit
+# From the main checkout, bash results/antpush_reference/run.sh and:
+#   setup          the worktree and the reference venv (once a machine)
+#   queue          everything left, in the protocol's order, in the background
+#   ours | hiro    one of ours (in the foreground)
+#   ref S          the code's seed S (in the foreground)
+#   status         what runs, how far each run is, here and committed
+#   sync "label"   the runs' rows and logs into this checkout, one commit
 #
 # The queue has two lanes, one a core: ours then HIRO; the code's seeds 0, 1, 2 one after the
 # other (a finished run is skipped). Run this copy (main's), from the project's venv (python on
-# PATH). Settings: STUDY_TREE (the worktree, default ../study2 beside this checkout), REFERENCE_HOME (the
-# reference venv and code, as reference.setup takes it).
+# PATH). Settings: STUDY_TREE (the worktree, default ../study2 beside this checkout),
+# REFERENCE_HOME (the reference venv and code, as reference.setup takes it), STUDY_MIRROR (a
+# local git directory of the upstream code, for setup).
 set -euo pipefail
 
 PIN=9d0c539                      # the runs' commit from 2026-12-06 evening (README.md, "Changes")
@@ -20,7 +22,7 @@ MAIN=$(cd "$(dirname "$0")/../.." && pwd)
 TREE=${STUDY_TREE:-$(dirname "$MAIN")/study2}
 FOLDER=results/antpush_reference
 LOGS="$TREE/$FOLDER/logs"
-MIRROR=${STUDY_MIRROR:-}         # a local git directory of the upstream code (reference.setup --from-mirror)
+MIRROR=${STUDY_MIRROR:-}         # reference.setup --from-mirror
 
 ours_command() {  # $1: ours or hiro
   echo python -m experiments.antpush --method "$1" --preset paper --physics c \
@@ -38,11 +40,15 @@ lowest_priority() {  # this shell's autogroup at nice 19 (what `nice` alone leav
 }
 
 has_row() {  # $1: a csv, $2: a column, $3: a value
-  [ -f "$1" ] && awk -F, -v c="$2" -v v="$3" 'NR > 1 && $c == v { found = 1 } END { exit !found }' "$1"
+  [ -f "$1" ] && awk -F, -v c="$2" -v v="$3" \
+    'NR > 1 && $c == v { found = 1 } END { exit !found }' "$1"
 }
 # Done: the run's last evaluation is in its rows, in the worktree or committed here (a run whose
 # rows are all committed is not run again on a new machine, whose worktree starts empty).
-ours_done() { has_row "$TREE/$FOLDER/$1/metrics.csv" 4 1100000 || has_row "$MAIN/$FOLDER/$1/metrics.csv" 4 1100000; }
+ours_done() {
+  has_row "$TREE/$FOLDER/$1/metrics.csv" 4 1100000 \
+    || has_row "$MAIN/$FOLDER/$1/metrics.csv" 4 1100000
+}
 ref_done() {
   local rows="$FOLDER/reference/seed$1/evaluations.csv"
   [ -f "$TREE/$FOLDER/reference/seed$1/done.json" ] || has_row "$MAIN/$rows" 1 1100000
@@ -69,9 +75,12 @@ run_ref() {  # the same command starts and resumes
 
 setup() {
   if [ ! -d "$TREE" ]; then git -C "$MAIN" worktree add --detach "$TREE" "$PIN"; fi
-  [ "$(git -C "$TREE" rev-parse --short=7 HEAD)" = "$PIN" ] || { echo "$TREE is not at $PIN" >&2; exit 1; }
+  if [ "$(git -C "$TREE" rev-parse --short=7 HEAD)" != "$PIN" ]; then
+    echo "$TREE is not at $PIN" >&2; exit 1
+  fi
   cd "$TREE"
-  if [ -n "$MIRROR" ]; then python -m reference.setup --from-mirror "$MIRROR"; else python -m reference.setup; fi
+  if [ -n "$MIRROR" ]; then python -m reference.setup --from-mirror "$MIRROR"
+  else python -m reference.setup; fi
 }
 
 queue() {  # two lanes, each in its own session (its own autogroup), detached from this shell
@@ -81,7 +90,8 @@ queue() {  # two lanes, each in its own session (its own autogroup), detached fr
 }
 
 newest() {  # $1: a csv, $2: the step's column. The largest step in its rows, or "-"
-  [ -f "$1" ] && awk -F, -v c="$2" 'NR > 1 && $c + 0 > m { m = $c + 0 } END { print (m ? m : "-") }' "$1" || echo -
+  [ -f "$1" ] && awk -F, -v c="$2" \
+    'NR > 1 && $c + 0 > m { m = $c + 0 } END { print (m ? m : "-") }' "$1" || echo -
 }
 
 status() {
@@ -92,8 +102,9 @@ status() {
       "$(newest "$MAIN/$FOLDER/$m/metrics.csv" 4) committed$(ours_done "$m" && echo '; done')"
   done
   for s in 0 1 2; do
-    echo "the code's seed $s: rows to t = $(newest "$TREE/$FOLDER/reference/seed$s/evaluations.csv" 1)" \
-      "here, $(newest "$MAIN/$FOLDER/reference/seed$s/evaluations.csv" 1) committed$(ref_done "$s" && echo '; done')"
+    local rows="$FOLDER/reference/seed$s/evaluations.csv"
+    echo "the code's seed $s: rows to t = $(newest "$TREE/$rows" 1) here," \
+      "$(newest "$MAIN/$rows" 1) committed$(ref_done "$s" && echo '; done')"
   done
 }
 
@@ -104,7 +115,7 @@ sync_rows_file() {  # $1: a csv under $FOLDER. Copied when its rows extend the c
   n=$(wc -l < "$new")
   if [ -f "$old" ]; then
     if ! head -n "$n" "$old" | cmp -s - <(head -n "$(wc -l < "$old")" "$new"); then
-      echo "$1: the run's rows differ from the committed ones (first difference below); not copied" >&2
+      echo "$1: the run's rows differ from the committed ones (the first below); not copied" >&2
       diff <(head -n "$n" "$old") <(head -n "$(wc -l < "$old")" "$new") | head -n 4 >&2
       return 1
     fi
