@@ -161,6 +161,9 @@ sync_rows() {  # $1: the commit's label
   return $status
 }
 
+# One block, read whole before it runs: the lanes run for hours from this file, which a later
+# commit may change under them (bash reads a script as it goes).
+{
 case "${1:-}" in
   setup) setup ;;
   queue) queue ;;
@@ -172,3 +175,5 @@ case "${1:-}" in
   sync) sync_rows "${2:?a label for the commit}" ;;
   *) awk 'NR > 1 && /^#/ { print; next } NR > 1 { exit }' "$0"; exit 2 ;;
 esac
+exit $?
+}
