@@ -84,6 +84,9 @@ setup() {
 }
 
 queue() {  # two lanes, each in its own session (its own autogroup), detached from this shell
+  if pgrep -f "run.sh lane-" > /dev/null; then
+    echo "the queue runs already (bash $0 status)" >&2; exit 1
+  fi
   setsid nohup bash "$0" lane-ours > /dev/null 2>&1 < /dev/null &
   setsid nohup bash "$0" lane-ref > /dev/null 2>&1 < /dev/null &
   echo "queued; logs in $LOGS"
