@@ -175,8 +175,9 @@ def main(argv=None) -> int:
     if payload.get("platform") == "cpu" and isinstance(payload.get("device_count"), int):
       run.use_cpu_devices(payload["device_count"])  # the device count the run trained on
     print(f"{args.folder}: {host_line(payload)}", flush=True)
-    if moved_line(args.folder):
-      print(f"{args.folder}: {moved_line(args.folder)}", flush=True)
+    moved = moved_line(args.folder)
+    if moved:
+      print(f"{args.folder}: {moved}", flush=True)
     comparisons = reproduce(args.folder, args.steps, args.method)
   except (ValueError, rows_lib.MetricsError) as e:
     print(f"{p.prog}: error: {e}", file=sys.stderr)

@@ -82,4 +82,7 @@ def test_a_resume_at_another_commit_or_machine_type_is_said(folder, tmp_path):
   assert line.startswith("resumed at commit abcdef0 and on another CPU (family "
                          f"{first['host']['cpu_family']}, model 1) on 2026-12-08T10:00:00+0000: ")
   assert "only up to there" in line
+  flags = {**here_again, "host": {**first["host"], "cores": 64, "xla_flags": "--x"}}
+  assert provenance.moves([first, flags]) == [  # the core count alone is no other machine type
+      "resumed with XLA_FLAGS '--x' on 2026-12-07T10:00:00+0000"]
 

@@ -96,9 +96,11 @@ def moves(sessions: list) -> list[str]:
     if (before.get("code") or {}).get("commit") != (now.get("code") or {}).get("commit"):
       changed.append(f"at commit {str((now.get('code') or {}).get('commit'))[:7]}")
     a, b = before.get("host") or {}, now.get("host") or {}
-    if any(a.get(k) != b.get(k) for k in set(a) | set(b) if k != "cores"):
+    if any(a.get(k) != b.get(k) for k in ("cpu", "cpu_family", "cpu_model", "isa")):
       changed.append(f"on {b.get('cpu')} (family {b.get('cpu_family')}, model "
                      f"{b.get('cpu_model')})")
+    if a.get("xla_flags") != b.get("xla_flags"):
+      changed.append(f"with XLA_FLAGS {b.get('xla_flags')!r}")
     if changed:
       out.append(f"resumed {' and '.join(changed)} on {now.get('started')}")
   return out
