@@ -288,7 +288,7 @@ def test_the_launcher_commits_rows_that_extend_the_committed_ones_and_refuses_ot
   assert committed.read_text() == "\n".join(longer) + "\n"
   assert (committed.parent / "config.json").read_text() == '{"run": 1}'
   assert (committed.parent / "run.log").read_text() == "ours step 30000/1100000\n"
-  assert "to 30K" in out.stdout
+  assert "rows to ours env step 30000 (to 30K)" in out.stdout
   assert "rows to env step 30000 here, 30000 committed" in run("status").stdout
   # Another run of the same seeds (another machine): its rows differ, nothing is copied.
   other = longer[:3] + ["AntPush,ours,0,20000,0.5"] + longer[4:] + ["AntPush,ours,0,40000,0.0"]

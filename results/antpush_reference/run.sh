@@ -8,7 +8,7 @@
 #   ours | hiro    one of ours (in the foreground)
 #   ref S          the code's seed S (in the foreground)
 #   status         what runs, how far each run is, here and committed
-#   sync "label"   the runs' rows and logs into this checkout, one commit
+#   sync [note]    the runs' rows and logs into this checkout, one commit
 #
 # The queue has two lanes, one a core: ours then HIRO; the code's seeds 0, 1, 2 one after the
 # other (a finished run is skipped). Run this copy (main's), from the project's venv (python on
@@ -147,7 +147,20 @@ sync_log() {  # $1: a lane's log (logs/<name>.log in the worktree), $2: the run'
   cp "$log" "$MAIN/$FOLDER/$2/run.log"; git -C "$MAIN" add "$FOLDER/$2/run.log"
 }
 
-sync_rows() {  # $1: the commit's label
+extents() {  # how far each run's committed rows go, for the commit's message
+  local m s parts=()
+  for m in ours hiro; do
+    [ -f "$MAIN/$FOLDER/$m/metrics.csv" ] \
+      && parts+=("$m env step $(newest "$MAIN/$FOLDER/$m/metrics.csv" 4)")
+  done
+  for s in 0 1 2; do
+    [ -f "$MAIN/$FOLDER/reference/seed$s/evaluations.csv" ] && parts+=(
+      "the code's seed $s t = $(newest "$MAIN/$FOLDER/reference/seed$s/evaluations.csv" 1)")
+  done
+  local IFS=,; echo "${parts[*]}" | sed 's/,/, /g'
+}
+
+sync_rows() {  # $1: a note for the commit's message (optional)
   local status=0 m s
   for m in ours hiro; do
     sync_run "$m" metrics.csv -- config.json && sync_log "$m" "$m" || status=1
@@ -157,7 +170,8 @@ sync_rows() {  # $1: the commit's label
       && sync_log "ref$s" "reference/seed$s" || status=1
   done
   if ! git -C "$MAIN" diff --cached --quiet; then
-    git -C "$MAIN" commit -q -m "$FOLDER: rows ($1)" && git -C "$MAIN" log --oneline -1
+    git -C "$MAIN" commit -q -m "$FOLDER: rows to $(extents)${1:+ ($1)}" \
+      && git -C "$MAIN" log --oneline -1
   else
     echo "no new rows"
   fi
@@ -175,7 +189,7 @@ case "${1:-}" in
   ref) run_ref "${2:?the seed}" ;;
   lane-ours) run_ours ours && ours_done ours && run_ours hiro ;;
   lane-ref) for s in 0 1 2; do run_ref "$s" && ref_done "$s" || exit 1; done ;;
-  sync) sync_rows "${2:?a label for the commit}" ;;
+  sync) sync_rows "${2:-}" ;;
   *) awk 'NR > 1 && /^#/ { print; next } NR > 1 { exit }' "$0"; exit 2 ;;
 esac
 exit $?
