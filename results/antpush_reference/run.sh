@@ -128,23 +128,23 @@ sync_rows_file() {  # $1: a csv under $FOLDER. Copied when its rows extend the c
   head -n "$n" "$new" > "$old"; git -C "$MAIN" add "$1"   # whole lines (one may be being written)
 }
 
+copy_changed() {  # $1: a file, $2: its path under this checkout. Copied and staged if it differs
+  [ -f "$1" ] || return 0
+  cmp -s "$1" "$MAIN/$2" 2>/dev/null && return 0
+  cp "$1" "$MAIN/$2"; git -C "$MAIN" add "$2"
+}
+
 sync_run() {  # $1: a run's folder under $FOLDER, then its row files, then "--", its other files
   # (config.json, provenance.json: copied as they are when every row file was taken)
   local dir=$1 f; shift
   while [ "$1" != -- ]; do sync_rows_file "$FOLDER/$dir/$1" || return 1; shift; done
   shift
-  for f in "$@"; do
-    [ -f "$TREE/$FOLDER/$dir/$f" ] || continue
-    cmp -s "$TREE/$FOLDER/$dir/$f" "$MAIN/$FOLDER/$dir/$f" 2>/dev/null && continue
-    cp "$TREE/$FOLDER/$dir/$f" "$MAIN/$FOLDER/$dir/$f"; git -C "$MAIN" add "$FOLDER/$dir/$f"
-  done
+  for f in "$@"; do copy_changed "$TREE/$FOLDER/$dir/$f" "$FOLDER/$dir/$f"; done
 }
 
 sync_log() {  # $1: a lane's log (logs/<name>.log in the worktree), $2: the run's folder
-  local log="$LOGS/$1.log"
-  [ -f "$log" ] && [ -d "$MAIN/$FOLDER/$2" ] || return 0
-  cmp -s "$log" "$MAIN/$FOLDER/$2/run.log" 2>/dev/null && return 0
-  cp "$log" "$MAIN/$FOLDER/$2/run.log"; git -C "$MAIN" add "$FOLDER/$2/run.log"
+  [ -d "$MAIN/$FOLDER/$2" ] || return 0
+  copy_changed "$LOGS/$1.log" "$FOLDER/$2/run.log"
 }
 
 extents() {  # how far each run's committed rows go, for the commit's message
