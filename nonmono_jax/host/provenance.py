@@ -51,14 +51,24 @@ def host() -> dict:
           "xla_flags": os.environ.get("XLA_FLAGS", "")}
 
 
+# What makes another machine type (another CPU or instruction set: XLA:CPU's code differs), and
+# what else rounds a run differently; the core count does neither.
+MACHINE_KEYS = ("cpu", "cpu_family", "cpu_model", "isa")
+ROUNDING_KEYS = (*MACHINE_KEYS, "xla_flags")
+
+
+def host_changes(before: dict, after: dict) -> list[str]:
+  """The keys of ``host()`` (of ``ROUNDING_KEYS``) in which two recorded hosts differ."""
+  return [k for k in ROUNDING_KEYS if before.get(k) != after.get(k)]
+
+
 def host_differs(payload) -> str | None:
   """What differs between the host that started the run in ``payload`` (``config.json``) and
   this one, or None (also for runs from before hosts were recorded)."""
   saved, now = payload.get("host"), host()
   if not isinstance(saved, dict):
     return None
-  changed = [f"{k} {saved.get(k)!r} (here {now[k]!r})" for k in now if saved.get(k) != now[k]
-             and k != "cores"]
+  changed = [f"{k} {saved.get(k)!r} (here {now[k]!r})" for k in host_changes(saved, now)]
   return "; ".join(changed) or None
 
 
@@ -95,11 +105,12 @@ def moves(sessions: list) -> list[str]:
     changed = []
     if (before.get("code") or {}).get("commit") != (now.get("code") or {}).get("commit"):
       changed.append(f"at commit {str((now.get('code') or {}).get('commit'))[:7]}")
-    a, b = before.get("host") or {}, now.get("host") or {}
-    if any(a.get(k) != b.get(k) for k in ("cpu", "cpu_family", "cpu_model", "isa")):
+    b = now.get("host") or {}
+    keys = host_changes(before.get("host") or {}, b)
+    if set(keys) & set(MACHINE_KEYS):
       changed.append(f"on {b.get('cpu')} (family {b.get('cpu_family')}, model "
                      f"{b.get('cpu_model')})")
-    if a.get("xla_flags") != b.get("xla_flags"):
+    if "xla_flags" in keys:
       changed.append(f"with XLA_FLAGS {b.get('xla_flags')!r}")
     if changed:
       out.append(f"resumed {' and '.join(changed)} on {now.get('started')}")
