@@ -305,6 +305,30 @@ def test_the_launcher_commits_rows_that_extend_the_committed_ones_and_refuses_ot
   assert out.returncode == 0 and "no new rows" in out.stdout
 
 
+def test_the_launcher_takes_a_resumed_reference_run_whose_rows_differ_only_in_times(tmp_path):
+  """A reference run resumed from its checkpoint at t writes its evaluation row of t again,
+  with its own times (``reference.logs.TIMING``); the rest of the row is the same. Its rows are
+  taken; a row differing in anything else is not."""
+  _, _, _, run = _launcher(tmp_path)
+  seed = "results/antpush_reference/reference/seed1/evaluations.csv"
+  committed, running = tmp_path / "main" / seed, tmp_path / "study2" / seed
+  header = "t,step,success_rate,eval_s,train_steps_per_s,wall_s"
+  rows = [header, "10000,0,0.0,21.1,78.2,100.0", "20000,10000,0.0,20.5,79.0,300.5"]
+  committed.parent.mkdir(parents=True)
+  committed.write_bytes("\r\n".join(rows).encode() + b"\r\n")  # as the csv module writes
+  again = rows[:2] + ["20000,10000,0.0,22.9,,310.0", "30000,20000,0.02,19.8,80.1,500.0"]
+  running.parent.mkdir(parents=True)
+  running.write_bytes("\r\n".join(again).encode() + b"\r\n")
+  out = run("sync")
+  assert out.returncode == 0, out.stderr
+  assert committed.read_bytes() == running.read_bytes()  # the run's own times, as it wrote them
+  other = again[:2] + ["20000,10000,0.02,22.9,,310.0"] + again[3:] + ["40000,30000,0.0,1,2,3"]
+  running.write_bytes("\r\n".join(other).encode() + b"\r\n")
+  out = run("sync")
+  assert out.returncode == 1 and "differ from the committed ones" in out.stderr
+  assert committed.read_bytes() == "\r\n".join(again).encode() + b"\r\n"
+
+
 def test_the_launcher_takes_a_run_whose_last_rows_are_committed_as_done(tmp_path):
   rows, committed, _, run = _launcher(tmp_path)
   ours_line = lambda: next(line for line in run("status").stdout.splitlines()

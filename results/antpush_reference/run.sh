@@ -111,15 +111,27 @@ status() {
   done
 }
 
-sync_rows_file() {  # $1: a csv under $FOLDER. Copied when its rows extend the committed ones;
-  # another run of the same seeds (a restart on a new machine) differs, and is refused.
+TIMING=""  # the columns that measure time (reference.logs.TIMING), set by sync_rows
+
+determined() {  # $1: a csv, $2: how many lines. Those lines, their timing columns emptied
+  head -n "$2" "$1" | awk -F, -v OFS=, -v drop="$TIMING" '
+    { sub(/\r$/, "") }  # the csv module ends lines with \r\n
+    NR == 1 { n = split(drop, d, " ")
+              for (i = 1; i <= NF; i++) for (j = 1; j <= n; j++) if ($i == d[j]) t[i] = 1 }
+    NR > 1 { for (i in t) $i = "" } { print }'
+}
+
+sync_rows_file() {  # $1: a csv under $FOLDER. Copied when its rows extend the committed ones,
+  # times aside (a resumed reference run writes its checkpoint's evaluation row again, with
+  # its own times); another run of the same seeds (a restart on a new machine) differs, and is
+  # refused.
   local new="$TREE/$1" old="$MAIN/$1" n
   [ -f "$new" ] || return 0
   n=$(wc -l < "$new")
   if [ -f "$old" ]; then
-    if ! head -n "$n" "$old" | cmp -s - <(head -n "$(wc -l < "$old")" "$new"); then
+    if ! cmp -s <(determined "$old" "$n") <(determined "$new" "$(wc -l < "$old")"); then
       echo "$1: the run's rows differ from the committed ones (the first below); not copied" >&2
-      diff <(head -n "$n" "$old") <(head -n "$(wc -l < "$old")" "$new") | head -n 4 >&2
+      diff <(determined "$old" "$n") <(determined "$new" "$(wc -l < "$old")") | head -n 4 >&2
       return 1
     fi
     [ "$n" -gt "$(wc -l < "$old")" ] || return 0
@@ -162,6 +174,7 @@ extents() {  # how far each run's committed rows go, for the commit's message
 
 sync_rows() {  # $1: a note for the commit's message (optional)
   local status=0 m s
+  TIMING=$(python -c 'from reference.logs import TIMING; print(*TIMING)')
   for m in ours hiro; do
     sync_run "$m" metrics.csv -- config.json && sync_log "$m" "$m" || status=1
   done
