@@ -266,10 +266,9 @@ def _launcher(tmp_path):
   git("-c", "user.name=t", "-c", "user.email=t@t", "commit", "-q", "-m", "rows")
   (tree / "results" / "antpush_reference" / "ours").mkdir(parents=True)
 
-  def run(*args, **settings):
+  def run(*args):
     env = {**os.environ, "STUDY_TREE": str(tree), "GIT_AUTHOR_NAME": "t",
-           "GIT_AUTHOR_EMAIL": "t@t", "GIT_COMMITTER_NAME": "t", "GIT_COMMITTER_EMAIL": "t@t",
-           **settings}
+           "GIT_AUTHOR_EMAIL": "t@t", "GIT_COMMITTER_NAME": "t", "GIT_COMMITTER_EMAIL": "t@t"}
     return subprocess.run(["bash", str(folder / "run.sh"), *args], env=env, text=True,
                           capture_output=True)
   running = tree / "results" / "antpush_reference" / "ours" / "metrics.csv"
@@ -338,28 +337,3 @@ def test_the_launcher_takes_a_run_whose_last_rows_are_committed_as_done(tmp_path
   committed.write_text("\n".join(rows + ["AntPush,ours,0,1100000,0.1"]) + "\n")
   assert ours_line() == "ours: rows to env step - here, 1100000 committed; done"
   assert run("ours").stdout.strip() == "ours: done"
-
-
-def test_the_launcher_runs_a_run_in_one_lane_at_a_time(tmp_path):
-  """HIRO goes to whichever lane is free first; the other lane, reaching it, finds the run's
-  lock held and leaves it (two processes writing one run folder would corrupt it). A stand-in
-  ``python`` on PATH records what the launcher would have started."""
-  import fcntl
-  _, _, _, run = _launcher(tmp_path)
-  bin_ = tmp_path / "bin"
-  bin_.mkdir()
-  (bin_ / "python").write_text('#!/bin/sh\necho "$@" >> "$(dirname "$0")/started"\n')
-  (bin_ / "python").chmod(0o755)
-  path = f"{bin_}:{os.environ['PATH']}"
-  logs = tmp_path / "study2" / "results" / "antpush_reference" / "logs"
-  logs.mkdir()
-  with open(logs / "hiro.lock", "w") as lock:
-    fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)  # the lane that runs HIRO
-    out = run("hiro", PATH=path)
-  assert out.returncode == 0, out.stderr
-  assert out.stdout.strip() == "hiro: runs already (in another lane)"
-  assert not (bin_ / "started").exists()
-  # The lock free (its lane's run ended, not done): the next lane starts the run.
-  out = run("hiro", PATH=path)
-  assert out.returncode == 0, out.stderr
-  assert "experiments.antpush --method hiro" in (bin_ / "started").read_text()

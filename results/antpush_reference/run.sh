@@ -10,9 +10,8 @@
 #   status         what runs, how far each run is, here and committed
 #   sync [note]    the runs' rows and logs into this checkout, one commit
 #
-# The queue has two lanes, one a core: ours; the code's seeds 0, 1, 2 one after the other; then
-# HIRO on whichever lane is free first (a finished run is skipped; a lock per run keeps it to one
-# process). Run this copy (main's), from the project's venv (python on
+# The queue has two lanes, one a core: ours then HIRO; the code's seeds 0, 1, 2 one after the
+# other (a finished run is skipped). Run this copy (main's), from the project's venv (python on
 # PATH). Settings: STUDY_TREE (the worktree, default ../study2 beside this checkout),
 # REFERENCE_HOME (the reference venv and code, as reference.setup takes it), STUDY_MIRROR (a
 # local git directory of the upstream code, for setup).
@@ -58,10 +57,7 @@ ref_done() {
 run_ours() {  # start, or resume the run's folder
   local method=$1 out="$TREE/$FOLDER/$1"
   if ours_done "$method"; then echo "$method: done"; return 0; fi
-  mkdir -p "$LOGS"
-  exec 9> "$LOGS/$method.lock"  # held by the run's python too, until it ends
-  if ! flock -n 9; then echo "$method: runs already (in another lane)"; return 0; fi
-  lowest_priority; cd "$TREE"
+  mkdir -p "$LOGS"; lowest_priority; cd "$TREE"
   if [ -f "$out/config.json" ]; then
     PYTHONPATH="$TREE" nice -n 19 python -m experiments.antpush --resume "$FOLDER/$method" \
       --no-progress >> "$LOGS/$method.log" 2>&1
@@ -205,7 +201,7 @@ case "${1:-}" in
   ours|hiro) run_ours "$1" ;;
   ref) run_ref "${2:?the seed}" ;;
   lane-ours) run_ours ours && ours_done ours && run_ours hiro ;;
-  lane-ref) for s in 0 1 2; do run_ref "$s" && ref_done "$s" || exit 1; done; run_ours hiro ;;
+  lane-ref) for s in 0 1 2; do run_ref "$s" && ref_done "$s" || exit 1; done ;;
   sync) sync_rows "${2:-}" ;;
   *) awk 'NR > 1 && /^#/ { print; next } NR > 1 { exit }' "$0"; exit 2 ;;
 esac
