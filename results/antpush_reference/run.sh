@@ -123,8 +123,9 @@ determined() {  # $1: a csv, $2: how many lines. Those lines, their timing colum
 
 sync_rows_file() {  # $1: a csv under $FOLDER. Copied when its rows extend the committed ones,
   # times aside (a resumed reference run writes its checkpoint's evaluation row again, with
-  # its own times); another run of the same seeds (a restart on a new machine) differs, and is
-  # refused.
+  # its own times). A restart of the same seeds from step 0 on a machine with another CPU
+  # differs, and is refused; on the same CPU model it repeats the committed rows bit for bit
+  # (HIRO's, 2026-12-07: README.md, "Changes"), and is taken.
   local new="$TREE/$1" old="$MAIN/$1" n
   [ -f "$new" ] || return 0
   n=$(wc -l < "$new")
