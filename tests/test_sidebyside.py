@@ -305,6 +305,32 @@ def test_the_launcher_commits_rows_that_extend_the_committed_ones_and_refuses_ot
   assert out.returncode == 0 and "no new rows" in out.stdout
 
 
+def test_the_launcher_joins_a_restarted_runs_log_to_the_committed_one(tmp_path):
+  """A run started again from step 0 on a new machine whose rows repeat the committed ones (the
+  same CPU model) has a log of its own: the committed log stays, the new one goes on after it,
+  in the lane's log too, so that later syncs extend it."""
+  rows, committed, running, run = _launcher(tmp_path)
+  logs = running.parent.parent / "logs"
+  logs.mkdir()
+  (logs / "ours.log").write_text("first start\nours step 20000/1100000\n")
+  running.write_text("\n".join(rows) + "\n")
+  assert run("sync").returncode == 0  # the first start's log committed
+  (logs / "ours.log").write_text("second start\n")  # the worktree lost, the run started again
+  running.write_text("\n".join(rows[:3]) + "\n")
+  out = run("sync")
+  assert out.returncode == 0, out.stderr
+  joined = (committed.parent / "run.log").read_text().splitlines()
+  assert joined[:2] == ["first start", "ours step 20000/1100000"]
+  assert joined[2].startswith("# run.sh sync, ") and "the run started again" in joined[2]
+  assert joined[3:] == ["second start"]
+  assert (logs / "ours.log").read_text().splitlines() == joined
+  with open(logs / "ours.log", "a") as f:  # the run goes on writing to the lane's log
+    f.write("ours step 10000/1100000\n")
+  assert run("sync").returncode == 0
+  assert (committed.parent / "run.log").read_text().splitlines() == joined + [
+      "ours step 10000/1100000"]
+
+
 def test_the_launcher_takes_a_resumed_reference_run_whose_rows_differ_only_in_times(tmp_path):
   """A reference run resumed from its checkpoint at t writes its evaluation row of t again,
   with its own times (``reference.logs.TIMING``); the rest of the row is the same. Its rows are

@@ -155,9 +155,20 @@ sync_run() {  # $1: a run's folder under $FOLDER, then its row files, then "--",
   for f in "$@"; do copy_changed "$TREE/$FOLDER/$dir/$f" "$FOLDER/$dir/$f"; done
 }
 
-sync_log() {  # $1: a lane's log (logs/<name>.log in the worktree), $2: the run's folder
-  [ -d "$MAIN/$FOLDER/$2" ] || return 0
-  copy_changed "$LOGS/$1.log" "$FOLDER/$2/run.log"
+sync_log() {  # $1: a lane's log (logs/<name>.log in the worktree), $2: the run's folder.
+  # The committed run.log, extended by the lane's. A lane's log that does not begin with the
+  # committed one (the run started again from step 0 on a new machine, its rows taken) is
+  # joined to it first, after a line that says so, in place (the run appends to that file).
+  local log="$LOGS/$1.log" old="$MAIN/$FOLDER/$2/run.log"
+  [ -d "$MAIN/$FOLDER/$2" ] && [ -f "$log" ] || return 0
+  if [ -f "$old" ] && ! cmp -s "$old" <(head -c "$(wc -c < "$old")" "$log"); then
+    { cat "$old"
+      echo "# run.sh sync, $(date -u '+%Y-%m-%d %H:%M UTC'): the lines above are the committed" \
+        "log; the run started again, and its log goes on below"
+      cat "$log"; } > "$log.joined"
+    cat "$log.joined" > "$log" && rm "$log.joined"
+  fi
+  copy_changed "$log" "$FOLDER/$2/run.log"
 }
 
 extents() {  # how far each run's committed rows go, for the commit's message
